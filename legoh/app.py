@@ -1,0 +1,7 @@
+"""Stage dispatch for ``run.py``."""
+
+from omegaconf import DictConfig, OmegaConf
+
+
+def run(cfg: DictConfig) -> None:
+    print(OmegaConf.to_yaml(cfg))

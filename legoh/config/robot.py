@@ -1,0 +1,54 @@
+"""Robot config schema (``conf/robot/*.yaml``)."""
+
+from dataclasses import dataclass, field
+from enum import Enum
+
+
+class UpperBody(Enum):
+    """What the waist and arms do: hold the default pose, or join the action."""
+
+    hold = "hold"
+    active = "active"
+
+
+@dataclass
+class CameraConfig:
+    """Egocentric depth camera, fixed to ``body`` (pose in that body's frame)."""
+
+    body: str = "torso_link"
+    pos: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])  # m, body frame
+    pitch_deg: float = 30.0  # downward tilt from horizontal, degrees
+    fovy_deg: float = 58.0  # vertical field of view, degrees
+    width: int = 64  # pixels
+    height: int = 48  # pixels
+    near: float = 0.05  # m
+    far: float = 3.0  # m: depth beyond is clipped
+
+
+@dataclass
+class RobotConfig:
+    """A humanoid: joint groups, PD gains, default pose, sensors.
+
+    Gains, limits and action scale are matched to joint names by substring (first match wins
+    in the order written), as in legged_gym, so one entry covers ``left_knee`` and ``right_knee``.
+    """
+
+    name: str = "???"
+    mjcf: str | None = None  # path to an MJCF file; None: the Menagerie model from the package
+    menagerie_dir: str = "???"  # Menagerie folder inside the assets package (unitree_h1, ...)
+    menagerie_file: str = "???"  # MJCF file name inside it
+    base_body: str = "pelvis"  # floating base
+    leg_joints: list[str] = field(default_factory=list)  # controlled by default, in action order
+    upper_joints: list[str] = field(default_factory=list)  # waist and arms
+    upper_body: UpperBody = UpperBody.hold  # hold: PD keeps the default pose; active: in the action
+    default_pose: dict[str, float] = field(default_factory=dict)  # rad; unnamed joints: 0
+    kp: dict[str, float] = field(default_factory=dict)  # N m / rad, by joint-name substring
+    kd: dict[str, float] = field(default_factory=dict)  # N m s / rad, by joint-name substring
+    torque_limit: dict[str, float] = field(default_factory=dict)  # N m; absent: the MJCF's
+    action_scale: float = 0.25  # rad per unit action: target = default + scale * action
+    nominal_base_height: float = 1.0  # m, pelvis height standing on flat ground
+    feet_bodies: list[str] = field(default_factory=list)  # [left, right]
+    imu_site: str = "imu"
+    camera: CameraConfig = field(default_factory=CameraConfig)
+    knee_bodies: list[str] = field(default_factory=list)  # shins/knees: collision-term bodies
+    render_meshes: bool = False  # keep visual meshes (rendering); training strips them
