@@ -1,21 +1,23 @@
 """Typed, read-only configuration: Hydra structured configs for every group.
 
-Each option file under ``conf/<group>/`` starts from its schema (``defaults: [/schema/<group>@_here_: ...]``)
-so a mistyped key or a wrong type fails at composition, naming the key.
+Each option file under ``conf/<group>/`` starts from its schema
+(``defaults: [/schema/<group>@_here_: ...]``), so a mistyped key or a wrong type fails at
+composition, naming the key.
 """
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
 from hydra.core.config_store import ConfigStore
-from omegaconf import MISSING
+from omegaconf import MISSING, DictConfig, OmegaConf
 
 from legoh.config.algo import OracleConfig
 from legoh.config.robot import CameraConfig, RobotConfig
 from legoh.config.trail import TrailConfig
 
-__all__ = ["Config", "SimConfig", "RobotConfig", "CameraConfig", "TrailConfig", "OracleConfig",
-           "register_configs"]
+__all__ = ["CameraConfig", "Config", "OracleConfig", "RobotConfig", "SimConfig", "TrailConfig",
+           "register_configs", "validate"]
 
 
 @dataclass
@@ -47,3 +49,23 @@ def register_configs() -> None:
     cs.store(group="schema/robot", name="robot", node=RobotConfig)
     cs.store(group="schema/trail", name="trail", node=TrailConfig)
     cs.store(group="schema/algo", name="oracle", node=OracleConfig)
+
+
+def validate(cfg: DictConfig, path: str = "") -> None:
+    """Refuse keys a schema does not declare, wherever they came from.
+
+    Composition already rejects mistyped keys in files and plain overrides; this also catches
+    Hydra's append syntax (``+robot.kpp=3``), which bypasses the schema.
+    """
+    schema = OmegaConf.get_type(cfg)
+    if dataclasses.is_dataclass(schema):
+        known = {f.name for f in dataclasses.fields(schema)}
+        unknown = sorted(set(cfg.keys()) - known)
+        if unknown:
+            where = path or "config"
+            raise ValueError(f"unknown key(s) {[f'{path}.{k}'.lstrip('.') for k in unknown]} "
+                             f"in {where} ({schema.__name__} has: {sorted(known)})")
+    for key in cfg.keys():
+        child = cfg._get_node(key)
+        if isinstance(child, DictConfig) and not child._is_none():
+            validate(child, f"{path}.{key}".lstrip("."))

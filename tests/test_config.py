@@ -1,0 +1,109 @@
+"""Config tree: every combination composes and matches its snapshot; bad input is named."""
+
+from pathlib import Path
+
+import pytest
+from hydra.errors import ConfigCompositionException, MissingConfigException
+from omegaconf import OmegaConf
+
+from legoh.config import validate
+from tests.conftest import CONF_DIR, compose_config
+
+SNAPSHOTS = Path(__file__).parent / "snapshots"
+
+
+def group_options(group: str) -> list[str]:
+    return sorted(p.stem for p in (Path(CONF_DIR) / group).glob("*.yaml"))
+
+
+COMBOS = [(r, t, a) for r in group_options("robot") for t in group_options("trail")
+          for a in group_options("algo")]
+
+
+def test_groups_have_the_required_options() -> None:
+    assert group_options("robot") == ["g1", "h1"]
+    assert set(group_options("trail")) >= {"flat", "randommix", "ditch", "hurdle", "gap",
+                                           "forest", "hill"}
+    assert "oracle" in group_options("algo")
+
+
+def test_defaults() -> None:
+    cfg = compose_config()
+    assert (cfg.robot.name, cfg.trail.name, cfg.algo.name) == ("h1", "randommix", "oracle")
+
+
+@pytest.mark.parametrize(("robot", "trail", "algo"), COMBOS)
+def test_snapshot(robot: str, trail: str, algo: str, update_snapshots: bool) -> None:
+    """Resolved YAML equals tests/snapshots/<robot>-<trail>-<algo>.yaml.
+
+    After an intended change of a default, rewrite them: pytest --update-snapshots
+    """
+    cfg = compose_config(f"robot={robot}", f"trail={trail}", f"algo={algo}")
+    text = OmegaConf.to_yaml(cfg, resolve=True)
+    path = SNAPSHOTS / f"{robot}-{trail}-{algo}.yaml"
+    if update_snapshots:
+        path.write_text(text)
+    assert path.exists(), f"no snapshot {path.name}: run pytest --update-snapshots"
+    assert text == path.read_text(), f"{path.name} differs: review, then --update-snapshots"
+
+
+def test_no_stale_snapshots() -> None:
+    expected = {f"{r}-{t}-{a}.yaml" for r, t, a in COMBOS}
+    assert {p.name for p in SNAPSHOTS.glob("*.yaml")} == expected
+
+
+def message(err: pytest.ExceptionInfo) -> str:
+    """The error text a user sees: Hydra's message and the cause it wraps."""
+    return f"{err.value}\n{err.value.__cause__}"
+
+
+def test_unknown_robot_lists_valid_options() -> None:
+    with pytest.raises(MissingConfigException) as err:
+        compose_config("robot=h2")
+    assert "robot/h2" in str(err.value)
+    assert "g1" in str(err.value) and "h1" in str(err.value)
+
+
+def test_mistyped_key_is_named() -> None:
+    with pytest.raises(ConfigCompositionException) as err:
+        compose_config("robot.kpp=3")
+    assert "Key 'kpp' not in 'RobotConfig'" in message(err)
+
+
+def test_appending_an_unknown_key_is_refused_too() -> None:
+    """Hydra's append syntax skips the schema; legoh.config.validate (run.py calls it) does not."""
+    validate(compose_config())
+    with pytest.raises(ValueError, match=r"robot\.kpp"):
+        validate(compose_config("+robot.kpp=3"))
+    with pytest.raises(ValueError, match=r"robot\.camera\.zoom"):
+        validate(compose_config("+robot.camera.zoom=3"))
+
+
+def test_wrong_type_is_named() -> None:
+    with pytest.raises(ConfigCompositionException) as err:
+        compose_config("robot.action_scale=abc")
+    assert "robot.action_scale" in message(err) and "abc" in message(err)
+
+
+def test_bad_enum_value_is_named() -> None:
+    with pytest.raises(ConfigCompositionException) as err:
+        compose_config("robot.upper_body=flailing")
+    assert "upper_body" in message(err) and "hold" in message(err)
+
+
+def test_mistyped_key_in_a_yaml_file_fails(tmp_path: Path) -> None:
+    """A typo inside an option file (not only on the command line) fails at composition."""
+    from hydra import compose, initialize_config_dir
+
+    conf = tmp_path / "conf"
+    for group in ("robot", "trail", "algo"):
+        (conf / group).mkdir(parents=True)
+        for src in (Path(CONF_DIR) / group).glob("*.yaml"):
+            (conf / group / src.name).write_text(src.read_text())
+    (conf / "config.yaml").write_text((Path(CONF_DIR) / "config.yaml").read_text())
+    h1 = conf / "robot" / "h1.yaml"
+    h1.write_text(h1.read_text() + "action_scael: 0.5\n")
+    with initialize_config_dir(config_dir=str(conf), version_base="1.3"):
+        with pytest.raises(ConfigCompositionException) as err:
+            compose("config")
+    assert "Key 'action_scael' not in 'RobotConfig'" in message(err)

@@ -1,0 +1,122 @@
+"""Robots built from config by MjSpec edits: structure, mass, standing, camera, options."""
+
+import mujoco
+import numpy as np
+import pytest
+from omegaconf import OmegaConf
+
+from legoh.config import RobotConfig, SimConfig
+from legoh.envs.robots import CAMERA_NAME, IMU_SENSORS, build_robot_spec, mjcf_path
+from legoh.envs.sensors import RayDepthCamera
+from legoh.stand import build_standing_scene, hold_default_pose
+from tests.conftest import compose_config
+
+ROBOTS = ["h1", "g1"]
+EXPECTED_ACTIONS = {"h1": 10, "g1": 12}
+
+
+def robot_cfg(name: str, *overrides: str) -> RobotConfig:
+    return OmegaConf.to_object(compose_config(f"robot={name}", *overrides).robot)
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_compiles_with_legs_controlled(name: str) -> None:
+    spec, info = build_robot_spec(robot_cfg(name))
+    model = spec.compile()
+    assert info.num_actions == EXPECTED_ACTIONS[name]
+    assert model.nu == len(info.actuated_joints)
+    assert all("hip" in j or "knee" in j or "ankle" in j for j in info.action_joints)
+    for sensor in IMU_SENSORS:
+        assert model.sensor(sensor).id >= 0
+    assert model.camera(CAMERA_NAME).id >= 0
+    for foot in info.feet_bodies:
+        assert model.body(foot).id >= 0
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_joints_match_the_source_mjcf(name: str) -> None:
+    cfg = robot_cfg(name)
+    spec, info = build_robot_spec(cfg)
+    model = spec.compile()
+    source = mujoco.MjModel.from_xml_path(str(mjcf_path(cfg)))
+    assert list(info.action_joints) == list(cfg.leg_joints)
+    for i, joint in enumerate(info.actuated_joints):
+        np.testing.assert_allclose(model.joint(joint).range, source.joint(joint).range)
+        np.testing.assert_allclose(info.joint_range[i], source.joint(joint).range)
+        assert model.actuator(i).trnid[0] == model.joint(joint).id  # actuator order = joints
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_total_mass_within_one_percent(name: str) -> None:
+    cfg = robot_cfg(name)
+    model = build_robot_spec(cfg)[0].compile()
+    source = mujoco.MjModel.from_xml_path(str(mjcf_path(cfg)))
+    assert model.body_subtreemass[0] == pytest.approx(source.body_subtreemass[0], rel=0.01)
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_visual_meshes_stripped_for_training_kept_for_rendering(name: str) -> None:
+    train = build_robot_spec(robot_cfg(name))[0].compile()
+    render = build_robot_spec(robot_cfg(name), render=True)[0].compile()
+    assert render.ngeom > train.ngeom
+    # Every training geom collides, and none is a mesh (colliders are fitted primitives).
+    assert np.all(train.geom_contype | train.geom_conaffinity)
+    assert not np.any(train.geom_type == mujoco.mjtGeom.mjGEOM_MESH)
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_shins_and_feet_have_colliders(name: str) -> None:
+    cfg = robot_cfg(name)
+    model = build_robot_spec(cfg)[0].compile()
+    for body in [*cfg.feet_bodies, *cfg.knee_bodies]:
+        assert np.sum(model.geom_bodyid == model.body(body).id) >= 1, body
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_upper_body_active_joins_the_action(name: str) -> None:
+    cfg = robot_cfg(name, "robot.upper_body=active")
+    _, info = build_robot_spec(cfg)
+    assert info.num_actions == len(cfg.leg_joints) + len(cfg.upper_joints)
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_stands_five_seconds_under_pd(name: str) -> None:
+    cfg = robot_cfg(name)
+    model, data, info = build_standing_scene(cfg, SimConfig())
+    heights = hold_default_pose(model, data, seconds=5.0)
+    assert np.all(np.abs(heights - info.nominal_base_height) < 0.05), (heights.min(), heights.max())
+    up = data.xmat[model.body(info.base_body).id].reshape(3, 3)[:, 2]
+    assert up[2] > 0.95  # still upright, not merely high
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_camera_at_head_sees_floor_ahead(name: str) -> None:
+    cfg = robot_cfg(name)
+    model, data, info = build_standing_scene(cfg, SimConfig())
+    cam_pos = data.cam_xpos[model.camera(CAMERA_NAME).id]
+    assert cam_pos[2] > 0.75 * (info.nominal_base_height + 0.6 if name == "h1" else 1.2)
+    forward = -data.cam_xmat[model.camera(CAMERA_NAME).id].reshape(3, 3)[:, 2]
+    assert forward[0] > 0.8 and forward[2] < 0  # looks forward and down
+    depth = RayDepthCamera(model, CAMERA_NAME, 32, 24, far=10.0).render(model, data)
+    assert np.all(np.isfinite(depth))
+    rows = depth.mean(axis=1)
+    assert rows[-1] < rows[len(rows) // 2] < 10.0  # floor: ranges shrink toward the bottom
+    assert np.all(np.diff(rows) <= 1e-6)
+    # A planar floor seen from height h: the bottom row's ray hits at the predicted depth.
+    assert rows[-1] < 3.0 * cam_pos[2]
+
+
+def test_custom_mjcf_path_is_used_and_a_missing_one_is_named(tmp_path) -> None:
+    cfg = robot_cfg("h1")
+    explicit = robot_cfg("h1", f"robot.mjcf={mjcf_path(cfg)}")
+    assert build_robot_spec(explicit)[0].compile().nu == 19
+    with pytest.raises(FileNotFoundError, match="nowhere.xml"):
+        build_robot_spec(robot_cfg("h1", f"robot.mjcf={tmp_path / 'nowhere.xml'}"))
+
+
+def test_mjcf_without_the_joints_is_refused(tmp_path) -> None:
+    other = tmp_path / "other.xml"
+    other.write_text("<mujoco><worldbody><body name='pelvis'><freejoint/>"
+                     "<geom size='0.1'/></body></worldbody></mujoco>")
+    with pytest.raises(ValueError, match="left_hip_yaw"):
+        build_robot_spec(robot_cfg("h1", f"robot.mjcf={other}"))
