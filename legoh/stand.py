@@ -91,10 +91,9 @@ def main(cfg: DictConfig, out_dir: Path) -> Path:
     sim: SimConfig = OmegaConf.to_object(cfg.sim)
     model, data, info = build_standing_scene(robot_cfg, sim, render=True)
     heights = hold_default_pose(model, data, cfg.stand_seconds)
-    drop = info.nominal_base_height - heights.min()
     print(f"[legoh] {info.name}: {info.num_actions} actions over {len(info.actuated_joints)} "
           f"actuated joints; base height {heights[-1]:.3f} m after {cfg.stand_seconds:.1f} s "
-          f"(lowest {heights.min():.3f} m, {drop * 100:+.1f} cm below nominal)")
+          f"(lowest {heights.min():.3f} m; nominal {info.nominal_base_height:.3f} m)")
     path = render_picture(model, data, info, robot_cfg, out_dir / f"{info.name}_standing.png")
     print(f"[legoh] picture of the robot: {path}")
     return path

@@ -265,7 +265,7 @@ def standing_base_height(model: mujoco.MjModel, info: RobotInfo) -> float:
     feet = {model.body(b).id for b in info.feet_bodies}
     lowest = np.inf
     for g in range(model.ngeom):
-        if model.geom_bodyid[g] in feet:
+        if model.geom_bodyid[g] in feet and model.geom_contype[g]:  # colliders only
             # The bottom of a geom: its centre minus its bounding radius along z, a safe bound.
             lowest = min(lowest, data.geom_xpos[g, 2] - _geom_half_height(model, data, g))
     return float(-lowest)
