@@ -367,20 +367,26 @@ def trees(d: float, rng: np.random.Generator, grid: Grid) -> Patch:
     n = int(round(density * grid.length * grid.width))
     # A corridor that weaves across the tile keeps the forest passable at any density;
     # the expert path is still searched (goals.py), so it may take another opening.
-    amp = rng.uniform(0.5, 1.0) * lerp(0.5, 2.0, d)
-    wave = rng.uniform(4.0, 8.0)
+    amp = rng.uniform(0.7, 1.0) * lerp(1.2, 2.5, d)
+    wave = rng.uniform(5.0, 9.0)
     phase = rng.uniform(0.0, 2 * np.pi)
 
     def corridor(x: np.ndarray) -> np.ndarray:
         return grid.width / 2 + amp * np.sin(2 * np.pi * x / wave + phase) * np.sin(
             np.pi * np.clip(x / grid.length, 0, 1))
 
-    cx = rng.uniform(0.0, grid.length, 3 * n)
-    cy = rng.uniform(0.0, grid.width, 3 * n)
-    r = rng.uniform(lerp(0.1, 0.15, d), lerp(0.2, 0.45, d), 3 * n)
-    half_h = rng.uniform(0.75, 2.0, 3 * n)  # 1.5 to 4 m trunks: they block the view
-    free = np.abs(cy - corridor(cx)) > r + grid.clearance + ROBOT_HALF_WIDTH + 0.3
-    keep = np.flatnonzero(free)[:n]
+    # Blockers first: trunks on the straight line force the detour wherever it may go.
+    blockers = int(round(lerp(0.3, 0.8, d) * grid.length))
+    cx = np.concatenate([rng.uniform(0.0, grid.length, blockers),
+                         rng.uniform(0.0, grid.length, 3 * n)])
+    cy = np.concatenate([grid.width / 2 + rng.uniform(-0.3, 0.3, blockers),
+                         rng.uniform(0.0, grid.width, 3 * n)])
+    r = rng.uniform(lerp(0.1, 0.15, d), lerp(0.2, 0.45, d), len(cx))
+    half_h = rng.uniform(0.75, 2.0, len(cx))  # 1.5 to 4 m trunks: they block the view
+    slope = (corridor(cx + 0.01) - corridor(cx - 0.01)) / 0.02
+    across = np.abs(cy - corridor(cx)) / np.sqrt(1.0 + slope**2)  # ~ distance to the corridor
+    free = across > r + grid.clearance + ROBOT_HALF_WIDTH + 0.3
+    keep = np.flatnonzero(free)[:n + blockers]
     cyl = np.stack([cx, cy, half_h, r, half_h], axis=-1)[keep]
     ground = lerp(0.0, 0.04, d) * smooth_noise(rng, grid, 0.5) * taper(grid)
     return Patch(ground, cylinders=cyl, params={"density": len(keep) / (grid.length * grid.width),

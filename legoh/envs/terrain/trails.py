@@ -129,7 +129,7 @@ def assemble(plan: list[tuple[str, int]], difficulty: float, rng: np.random.Gene
         cyls.append(placed.cylinders)
         anchors.append(placed.waypoints)
         elevation = placed.exit_height
-        names.append((name, cells * res))
+        names.append((name, round(cells * res, 6)))
         i0 += cells
     heights[i0:] = elevation
     anchors.append(np.array([[cfg.tile_length - cfg.start_pad / 2, width / 2]]))
