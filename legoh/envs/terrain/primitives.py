@@ -311,7 +311,8 @@ def ditch(d: float, rng: np.random.Generator, grid: Grid) -> Patch:
     h *= taper(grid, 0.3)  # a slanted ditch is closed off where it meets the segment ends
     step_off = top_half + grid.clearance  # waypoints on both lips, facing straight across
     wp = np.array([[cx, cy]]) + np.array([[-step_off], [step_off]]) * normal
-    return Patch(h, waypoints=wp, params={"depth": depth, "wall_grade": wall, "yaw": yaw})
+    inside = np.abs(s) < top_half  # the expert crosses lip to lip: no waypoint in the ditch
+    return Patch(h, waypoints=wp, keepout=inside, params={"depth": depth, "wall_grade": wall, "yaw": yaw})
 
 
 @register_primitive("hurdles", "height", (0.04, 0.42),
@@ -326,7 +327,8 @@ def hurdles(d: float, rng: np.random.Generator, grid: Grid) -> Patch:
         span = grid.width * rng.uniform(lerp(0.6, 1.0, d), 1.0)
         yaw = rng.uniform(-1, 1) * lerp(0.0, 0.3, d)
         cx = (k + 0.5) * grid.length / n
-        cy = grid.width / 2 + rng.uniform(-1, 1) * max(0.0, span / 2 - 1.0)  # covers centre
+        shift = max(0.0, min(span / 2 - 1.0, (grid.width - span) / 2))  # inside, over centre
+        cy = grid.width / 2 + rng.uniform(-1, 1) * shift
         boxes.append([cx, cy, height / 2, thick / 2, span / 2, height / 2, yaw])
         off = thick / 2 + grid.clearance + 0.1
         normal = np.array([np.cos(yaw), np.sin(yaw)])
@@ -358,7 +360,7 @@ def platforms(d: float, rng: np.random.Generator, grid: Grid) -> Patch:
                  params={"height": max(tops)})
 
 
-@register_primitive("trees", "density", (0.08, 0.44),
+@register_primitive("trees", "density", (0.0, 0.44),
                     "tree trunks of mixed sizes over gently rough ground, leaving one "
                     "winding corridor; density 0.08 -> 0.4 per m2, radius up to "
                     "0.15 -> 0.45 m")

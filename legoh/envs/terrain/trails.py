@@ -119,7 +119,7 @@ def assemble(plan: list[tuple[str, int]], difficulty: float, rng: np.random.Gene
         if up > cfg.max_elevation and down < up:
             patch = patch.negated()
         target = elevation + patch.exit_height
-        if abs(target) > cfg.max_elevation:  # still too far: flatten the segment to fit
+        if patch.exit_height and abs(target) > cfg.max_elevation + 1e-9:  # flatten it to fit
             scale = (np.sign(target) * cfg.max_elevation - elevation) / patch.exit_height
             patch.heights, patch.exit_height = patch.heights * scale, patch.exit_height * scale
         placed = _place(patch, i0 * res, elevation)
