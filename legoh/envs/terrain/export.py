@@ -63,9 +63,10 @@ def tile_scene(tm, tile, margin: float = 0.0) -> trimesh.Scene:
     si, sj = tile_window(tm, tile, margin)
     origin = tm.origin + np.array([si.start, sj.start]) * tm.resolution
     scene = trimesh.Scene()
-    scene.add_geometry(heightfield_mesh(tm.heights[si, sj], tm.resolution, origin), "ground")
+    ground = heightfield_mesh(tm.heights[si, sj], tm.resolution, origin)
+    scene.add_geometry(ground, geom_name="ground")
     for n, m in enumerate(obstacle_meshes(*tile_obstacles(tm, tile, margin))):
-        scene.add_geometry(m, f"obstacle_{n}")
+        scene.add_geometry(m, geom_name=f"obstacle_{n}")
     return scene
 
 

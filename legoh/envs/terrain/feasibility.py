@@ -41,7 +41,7 @@ def components(h: np.ndarray, standable: np.ndarray, res: float, max_step: float
     """(nx, ny) int label of each cell's connected region (-1 where not standable)."""
     nx, ny = h.shape
     idx = np.arange(nx * ny).reshape(nx, ny)
-    k = int(max_leap / res)
+    k = int(np.floor(max_leap / res + 1e-6))  # 0.6 / 0.1 is 5.999...
     src, dst = [], []
     for di in range(0, k + 1):
         for dj in range(-k, k + 1):

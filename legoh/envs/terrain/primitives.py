@@ -312,7 +312,8 @@ def ditch(d: float, rng: np.random.Generator, grid: Grid) -> Patch:
     step_off = top_half + grid.clearance  # waypoints on both lips, facing straight across
     wp = np.array([[cx, cy]]) + np.array([[-step_off], [step_off]]) * normal
     inside = np.abs(s) < top_half  # the expert crosses lip to lip: no waypoint in the ditch
-    return Patch(h, waypoints=wp, keepout=inside, params={"depth": depth, "wall_grade": wall, "yaw": yaw})
+    return Patch(h, waypoints=wp, keepout=inside,
+                 params={"depth": depth, "wall_grade": wall, "yaw": yaw})
 
 
 @register_primitive("hurdles", "height", (0.04, 0.42),
@@ -360,10 +361,10 @@ def platforms(d: float, rng: np.random.Generator, grid: Grid) -> Patch:
                  params={"height": max(tops)})
 
 
-@register_primitive("trees", "density", (0.0, 0.44),
+@register_primitive("trees", "density", (0.0, 0.6),
                     "tree trunks of mixed sizes over gently rough ground, leaving one "
-                    "winding corridor; density 0.08 -> 0.4 per m2, radius up to "
-                    "0.15 -> 0.45 m")
+                    "winding corridor; density 0.08 -> 0.4 per m2 plus 0.3 -> 0.8 "
+                    "blockers per m of trail, radius up to 0.2 -> 0.45 m")
 def trees(d: float, rng: np.random.Generator, grid: Grid) -> Patch:
     density = jitter(rng, lerp(0.08, 0.40, d), 0.08, 0.44)
     n = int(round(density * grid.length * grid.width))
