@@ -48,11 +48,8 @@ def measure(name: str, patch) -> float:
         return float(h.max())
     if prop == "height":
         return float((2 * patch.boxes[:, 5]).max())
-    if prop == "gap":  # widest run of pit along the stones' line
-        pit = np.concatenate([[0], (patch.heights[:, :] < -PIT_DEPTH / 2).all(axis=1)
-                              if name == "gaps" else
-                              (h[:, h.shape[1] // 2] < -PIT_DEPTH / 2) &
-                              (np.roll(h, 0, 1)[:, :].max(axis=1) < -PIT_DEPTH / 2), [0]])
+    if prop == "gap":  # median run of rows that are pit all across (between stones in x)
+        pit = np.concatenate([[0], h.max(axis=1) < -PIT_DEPTH / 2, [0]])
         edges = np.flatnonzero(np.diff(pit.astype(int)))
         runs = edges[1::2] - edges[::2]
         return float(np.median(runs)) * GRID.res if len(runs) else 0.0
