@@ -23,7 +23,7 @@ from legoh.envs.robots import (
     set_options,
     standing_base_height,
 )
-from legoh.envs.sensors import RayDepthCamera
+from legoh.envs.sensors import DepthRaycaster
 
 
 def build_standing_scene(robot_cfg: RobotConfig, sim: SimConfig, render: bool = False
@@ -68,7 +68,8 @@ def render_picture(model: mujoco.MjModel, data: mujoco.MjData, info: RobotInfo,
         renderer.update_scene(data, camera=cam)
         rgb = renderer.render()
     c = robot_cfg.camera
-    depth = RayDepthCamera(model, CAMERA_NAME, c.width * 2, c.height * 2, c.far).render(model, data)
+    depth = DepthRaycaster(model, c.fovy_deg, c.width * 2, c.height * 2, c.far).render_camera(
+        data, CAMERA_NAME)
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.6), gridspec_kw={"width_ratios": [1, 1.2]})
     axes[0].imshow(rgb)

@@ -7,7 +7,7 @@ from omegaconf import OmegaConf
 
 from legoh.config import RobotConfig, SimConfig
 from legoh.envs.robots import CAMERA_NAME, IMU_SENSORS, build_robot_spec, mjcf_path
-from legoh.envs.sensors import RayDepthCamera
+from legoh.envs.sensors import DepthRaycaster
 from legoh.stand import build_standing_scene, hold_default_pose
 from tests.conftest import compose_config
 
@@ -97,7 +97,8 @@ def test_camera_at_head_sees_floor_ahead(name: str) -> None:
     assert cam_pos[2] > 0.75 * (info.nominal_base_height + 0.6 if name == "h1" else 1.2)
     forward = -data.cam_xmat[model.camera(CAMERA_NAME).id].reshape(3, 3)[:, 2]
     assert forward[0] > 0.8 and forward[2] < 0  # looks forward and down
-    depth = RayDepthCamera(model, CAMERA_NAME, 32, 24, far=10.0).render(model, data)
+    depth = DepthRaycaster(model, cfg.camera.fovy_deg, 32, 24, far=10.0).render_camera(
+        data, CAMERA_NAME)
     assert np.all(np.isfinite(depth))
     rows = depth.mean(axis=1)
     assert rows[-1] < rows[len(rows) // 2] < 10.0  # floor: ranges shrink toward the bottom

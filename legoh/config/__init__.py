@@ -13,11 +13,12 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
 
 from legoh.config.algo import OracleConfig
+from legoh.config.env import EnvConfig
 from legoh.config.robot import CameraConfig, RobotConfig
 from legoh.config.trail import TrailConfig
 
-__all__ = ["CameraConfig", "Config", "OracleConfig", "RobotConfig", "SimConfig", "TrailConfig",
-           "register_configs", "validate"]
+__all__ = ["CameraConfig", "Config", "EnvConfig", "OracleConfig", "RobotConfig", "SimConfig",
+           "TrailConfig", "register_configs", "validate"]
 
 
 @dataclass
@@ -37,6 +38,7 @@ class Config:
     trail: Any = MISSING
     algo: Any = MISSING
     sim: SimConfig = field(default_factory=SimConfig)
+    env: EnvConfig = field(default_factory=EnvConfig)
     seed: int = 0
     device: str = "cpu"  # learner device; MuJoCo always steps on the CPU
     stand_seconds: float = 3.0  # s the main job holds the default pose before rendering

@@ -48,7 +48,8 @@ class RobotConfig:
     action_scale: float = 0.25  # rad per unit action: target = default + scale * action
     nominal_base_height: float = 1.0  # m, pelvis height standing on flat ground
     feet_bodies: list[str] = field(default_factory=list)  # [left, right]
-    imu_site: str = "imu"
     camera: CameraConfig = field(default_factory=CameraConfig)
     knee_bodies: list[str] = field(default_factory=list)  # shins/knees: collision-term bodies
+    hip_joints: list[str] = field(default_factory=list)  # hip yaw/roll: Table 6 "hip position"
+    reward_weights: dict[str, float] = field(default_factory=dict)  # robot-specific Table 6
     render_meshes: bool = False  # keep visual meshes (rendering); training strips them

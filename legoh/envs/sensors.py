@@ -1,13 +1,20 @@
-"""Egocentric depth by ray casting from a MuJoCo camera (``mj_multiRay``): no GL context needed."""
+"""Egocentric depth by ray casting (``mj_multiRay``): no GL context, batched over envs.
+
+The renderer alternative (MuJoCo's EGL ``Renderer``) is measured against this one in
+``experiments/bench_env.py``; ray casting is the default (docs/env.md gives the figures).
+"""
 
 from __future__ import annotations
+
+import os
+from concurrent.futures import ThreadPoolExecutor
 
 import mujoco
 import numpy as np
 
 from legoh.envs.robots import ROBOT_GEOM_GROUP
 
-# Ray casts see every geom group but the robot's own colliders.
+# Ray casts see every geom group but visual meshes (2) and the robot's own colliders.
 WORLD_GROUPS = np.array([g not in (2, ROBOT_GEOM_GROUP) for g in range(6)], dtype=np.uint8)
 
 
@@ -15,7 +22,7 @@ def camera_ray_directions(fovy_deg: float, width: int, height: int) -> np.ndarra
     """Unit ray directions through each pixel centre, in the camera frame.
 
     MuJoCo cameras look along their -z axis with +y up and +x right. Returns (height, width, 3),
-    row 0 at the top of the image. Depth is measured along -z (planar depth, like a depth camera).
+    row 0 at the top of the image.
     """
     half_h = np.tan(np.deg2rad(fovy_deg) / 2.0)
     half_w = half_h * width / height
@@ -27,30 +34,46 @@ def camera_ray_directions(fovy_deg: float, width: int, height: int) -> np.ndarra
     return dirs / np.linalg.norm(dirs, axis=-1, keepdims=True)
 
 
-class RayDepthCamera:
-    """Planar depth image from a named camera by ``mj_multiRay``.
+class DepthRaycaster:
+    """Planar depth images (along the optical axis, metres, clipped to ``far``) for many
+    camera poses against one world, cast in parallel threads (MuJoCo releases the GIL).
 
-    The robot's own colliders (geom group ``ROBOT_GEOM_GROUP``) and visual meshes (group 2,
-    present only in render builds) are skipped: the camera sees the world, not its own head.
+    The world is read from ``data``: static geoms only need one forward pass. The robot's own
+    colliders (group ``ROBOT_GEOM_GROUP``) and visual meshes are never hit.
     """
 
-    def __init__(self, model: mujoco.MjModel, camera: str, width: int, height: int,
-                 far: float) -> None:
-        cam = model.camera(camera)
-        self.cam_id = cam.id
-        self.width, self.height, self.far = width, height, far
-        self._dirs_cam = camera_ray_directions(float(model.cam_fovy[cam.id]), width, height)
-        self._cos = -self._dirs_cam[..., 2]  # ray length -> planar depth
-        n = width * height
-        self._geomid = np.zeros(n, dtype=np.int32)
-        self._dist = np.zeros(n, dtype=np.float64)
+    def __init__(self, model: mujoco.MjModel, fovy_deg: float, width: int, height: int,
+                 far: float, threads: int = 0) -> None:
+        self.model, self.width, self.height, self.far = model, width, height, far
+        dirs = camera_ray_directions(fovy_deg, width, height).reshape(-1, 3)
+        self._dirs = dirs
+        self._cos = -dirs[:, 2]  # ray length -> planar depth
+        self.threads = threads or os.cpu_count() or 1
+        self._pool = ThreadPoolExecutor(self.threads) if self.threads > 1 else None
 
-    def render(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
-        """Depth image (height, width) in metres, clipped to ``far``; misses read ``far``."""
-        rot = data.cam_xmat[self.cam_id].reshape(3, 3)
-        vec = (self._dirs_cam.reshape(-1, 3) @ rot.T).ravel()
-        mujoco.mj_multiRay(model, data, data.cam_xpos[self.cam_id], vec, WORLD_GROUPS, True,
-                           -1, self._geomid, self._dist, None,
-                           self.width * self.height, self.far * 2.0)
-        dist = np.where(self._dist < 0, np.inf, self._dist).reshape(self.height, self.width)
-        return np.minimum(dist * self._cos, self.far)
+    def render(self, data: mujoco.MjData, cam_pos: np.ndarray, cam_mat: np.ndarray
+               ) -> np.ndarray:
+        """Depth (N, height, width) for camera positions (N, 3) and rotations (N, 3, 3)."""
+        n, nray = len(cam_pos), len(self._dirs)
+        vec = np.einsum("rj,nij->nri", self._dirs, cam_mat).reshape(n, -1)
+        dist = np.empty((n, nray))
+
+        def cast(rows: range) -> None:
+            geomid = np.empty(nray, dtype=np.int32)
+            for i in rows:
+                mujoco.mj_multiRay(self.model, data, cam_pos[i], vec[i], WORLD_GROUPS, True,
+                                   -1, geomid, dist[i], None, nray, self.far * 2.0)
+
+        chunks = [range(k, n, self.threads) for k in range(self.threads)]
+        if self._pool is None:
+            cast(range(n))
+        else:
+            list(self._pool.map(cast, chunks))
+        dist[dist < 0] = np.inf  # a miss
+        return np.minimum(dist * self._cos, self.far).reshape(n, self.height, self.width)
+
+    def render_camera(self, data: mujoco.MjData, camera: str) -> np.ndarray:
+        """Depth (height, width) from a named camera of a forwarded ``data``."""
+        cam = self.model.camera(camera).id
+        return self.render(data, data.cam_xpos[cam][None],
+                           data.cam_xmat[cam].reshape(1, 3, 3))[0]

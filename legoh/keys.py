@@ -1,0 +1,38 @@
+"""TensorDict keys shared by environments, modules, objectives and metrics.
+
+Agreed once here and imported everywhere: a module reads keys and writes keys, nothing
+reaches into another's internals. Shapes below are per environment (batch dims first).
+"""
+
+# Observations (policy inputs)
+PROPRIO = ("obs", "proprio")  # (P,) base ang. vel., gravity, joints, last action, terminus
+PROPRIO_HISTORY = ("obs", "proprio_history")  # (10, P) oldest first
+SCANDOTS = ("obs", "scandots")  # (132,) heights on a 12 x 11 grid in the yaw frame
+PRIVILEGED = ("obs", "privileged")  # (K,) friction, mass/CoM offsets, strength, lin. vel., category
+GOAL = ("obs", "goal")  # (4,) terminus xy and middle waypoint xy, robot yaw frame, m
+DEPTH = ("obs", "depth")  # (T, H, W) depth frames, oldest first, normalised to [-0.5, 0.5]
+
+# Supervision from the trail (never a deployed input)
+EXPERT_GOALS = ("expert", "goals")  # (3, 2) next three expert waypoints, robot yaw frame, m
+
+# Actions and teacher labels
+ACTION = "action"
+TEACHER_ACTION = ("teacher", "action")
+TEACHER_LATENT = ("teacher", "latent")
+
+# Step results
+REWARD = "reward"
+DONE, TERMINATED, TRUNCATED = "done", "terminated", "truncated"
+
+# Signals for metrics and logs, per step
+INFO = "info"
+REACHED = ("info", "reached")  # bool: within the goal radius of the terminus
+FELL = ("info", "fell")  # bool: the pose check failed
+WAYPOINT = ("info", "waypoint")  # int: index of the current expert waypoint
+PROGRESS = ("info", "progress")  # float: fraction of the trail's length covered, [0, 1]
+EDGE_CONTACTS = ("info", "edge_contacts")  # int: feet in contact on a terrain edge
+FOOT_CONTACTS = ("info", "foot_contacts")  # int: feet in contact
+UNSAFE_COLLISIONS = ("info", "unsafe_collisions")  # int: non-foot bodies touching the world
+LEVEL = ("info", "level")  # int: the env's terrain level
+CATEGORY = ("info", "category")  # int: index of the env's trail category
+REWARD_TERMS = ("info", "reward_terms")  # sub-dict: one (1,) float per reward term
