@@ -213,8 +213,10 @@ class HikingEnv(EnvBase):
                else np.flatnonzero(mask.reshape(self.num_envs).numpy()))
         if len(ids):
             self._reset_envs(ids)
-        out = self._observe(np.zeros(self.num_envs, dtype=bool), np.zeros(self.num_envs, bool))
-        return out
+        none = np.zeros(self.num_envs, dtype=bool)
+        fresh = none.copy()
+        fresh[ids] = True  # only reset envs get a new history entry; the others keep theirs
+        return self._observe(none, none, fresh)
 
     def _reset_envs(self, ids: np.ndarray) -> None:
         """Curriculum update for finished episodes, then a new tile, pose and model."""
@@ -274,11 +276,12 @@ class HikingEnv(EnvBase):
         self.ctrl[:, :a] = self.robot.default_pose[:a] + self.robot.action_scale * applied
 
         self._maybe_push()
+        time_before = self.sim.state[:, 0].copy()
         self.sim.step(self.ctrl)
         self.steps += 1
         self.global_steps += self.num_envs
 
-        diverged = self._handle_divergence()
+        diverged = self._handle_divergence(time_before)
         state = self._step_state(action)
         reward, parts = compute_rewards(state, self.reward_terms)
         self._last_parts = parts
@@ -310,10 +313,13 @@ class HikingEnv(EnvBase):
                 kick = self.rng.uniform(-rc.push_max_vel, rc.push_max_vel, (int(due.sum()), 2))
                 self.sim.qvel[due, 0:2] += kick
 
-    def _handle_divergence(self) -> np.ndarray:
-        """Envs whose state went non-finite or exploded are reset and counted."""
+    def _handle_divergence(self, time_before: np.ndarray) -> np.ndarray:
+        """Envs whose state went non-finite or exploded are reset and counted. MuJoCo itself
+        resets an MjData whose qpos/qvel/qacc went bad (time restarts at 0, the robot jumps
+        to qpos0), so a step that did not advance time counts as diverged too."""
         qvel = self.sim.qvel
-        bad = ~np.isfinite(self.sim.state).all(axis=1) | (
+        mujoco_reset = self.sim.state[:, 0] < time_before + 0.5 * self.dt
+        bad = mujoco_reset | ~np.isfinite(self.sim.state).all(axis=1) | (
             np.abs(np.nan_to_num(qvel, nan=np.inf)) > self.cfg.divergence_qvel).any(axis=1)
         if bad.any():
             ids = np.flatnonzero(bad)
@@ -420,7 +426,10 @@ class HikingEnv(EnvBase):
         return (depth / self.cfg.depth.far - 0.5).astype(np.float32)
 
     # ----------------------------------------------------------------- observations
-    def _observe(self, reached: np.ndarray, fell: np.ndarray) -> TensorDict:
+    def _observe(self, reached: np.ndarray, fell: np.ndarray,
+                 advance: np.ndarray | None = None) -> TensorDict:
+        """Observations of all envs; ``advance`` (N,) bool: whose history takes the new
+        proprioception (default all)."""
         n = self.num_envs
         pos, rot = self._base()
         _, _, yaw = math3d.roll_pitch_yaw(rot)
@@ -443,7 +452,9 @@ class HikingEnv(EnvBase):
             terminus / np.maximum(dist, 1e-6),  # direction to the terminus (yaw frame)
             np.minimum(dist, 20.0) / 20.0,  # distance, normalised and capped at 20 m
         ], axis=1).astype(np.float32)
-        self.history = np.concatenate([self.history[:, 1:], proprio[:, None]], axis=1)
+        shifted = np.concatenate([self.history[:, 1:], proprio[:, None]], axis=1)
+        self.history = shifted if advance is None else np.where(advance[:, None, None],
+                                                                shifted, self.history)
 
         scan_xy = np.stack(np.meshgrid(SCAN_X, SCAN_Y, indexing="ij"), -1).reshape(-1, 2)
         c, s = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
@@ -469,7 +480,7 @@ class HikingEnv(EnvBase):
         parts = getattr(self, "_last_parts", {})
 
         def t(x: np.ndarray, dtype: torch.dtype = torch.float32) -> torch.Tensor:
-            return torch.as_tensor(np.asarray(x), dtype=dtype)
+            return torch.tensor(np.asarray(x), dtype=dtype)  # a copy: buffers change in place
 
         obs = {"proprio": t(proprio), "proprio_history": t(self.history),
                "scandots": t(scandots), "privileged": t(privileged),
