@@ -1,0 +1,159 @@
+"""Reward terms of ``legoh.envs.rewards``: sign and magnitude of each, worked by hand.
+
+Every case starts from a neutral two-env ``StepState`` (upright, standing still at the target
+height in the default pose, facing a waypoint 2 m ahead along +x) and changes the fields the
+term reads; env 0 and env 1 take the two sides of the behaviour under test.
+"""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from legoh.config.env import table6_weights
+from legoh.envs.rewards import REWARD_TERMS, StepState, active_terms, compute_rewards
+
+N, J, F = 2, 4, 2  # envs, joints, feet
+DT = 0.02  # s
+GOAL_SPEED = 0.8  # m/s
+TARGET_HEIGHT = 0.96  # m
+
+
+def neutral(**changes: object) -> StepState:
+    """A StepState of N envs in which every penalty is 0; ``changes`` replace fields."""
+    zeros = np.zeros
+    state = StepState(
+        dt=DT, lin_vel_body=zeros((N, 3)), ang_vel_body=zeros((N, 3)),
+        gravity_body=np.tile([0.0, 0.0, -1.0], (N, 1)), lin_vel_world=zeros((N, 3)),
+        base_xy=zeros((N, 2)), yaw=zeros(N), base_height=np.full(N, TARGET_HEIGHT),
+        target_height=TARGET_HEIGHT, dof_pos=zeros((N, J)), dof_vel=zeros((N, J)),
+        last_dof_vel=zeros((N, J)), default_pose=zeros(J),
+        joint_range=np.tile([-1.0, 1.0], (J, 1)), hip_idx=np.array([0, 1]),
+        torques=zeros((N, J)), last_torques=zeros((N, J)), action=zeros((N, J)),
+        last_action=zeros((N, J)), waypoint_xy=np.tile([2.0, 0.0], (N, 1)),
+        terminus_xy=np.tile([20.0, 0.0], (N, 1)), goal_speed=GOAL_SPEED, reach_radius=0.5,
+        feet_force=zeros((N, F, 3)), feet_contact=zeros((N, F), dtype=bool),
+        first_contact=zeros((N, F), dtype=bool), air_time=zeros((N, F)),
+        air_time_target=0.5, feet_on_edge=zeros((N, F), dtype=bool),
+        unsafe_contacts=zeros(N, dtype=np.int64), level=zeros(N, dtype=np.int64),
+    )
+    return replace(state, **changes)
+
+
+def rows(*per_env: list[float]) -> np.ndarray:
+    """(N, ...) array, one row per env."""
+    return np.array(per_env, dtype=np.float64)
+
+
+tilt = 0.3  # rad
+# term -> (changed fields, expected value per env, why)
+CASES: dict[str, tuple[dict, list[float], str]] = {
+    "tracking_goal_vel": (
+        {"lin_vel_world": rows([0.4, 0.0, 0.0], [-0.4, 0.0, 0.0])},
+        [0.4 / GOAL_SPEED, -0.4 / GOAL_SPEED],
+        "toward the waypoint positive, away negative"),
+    "tracking_yaw": (
+        {"yaw": np.array([0.0, np.pi / 2])}, [1.0, np.exp(-np.pi / 2)],
+        "1 facing the waypoint, exp(-|error|) otherwise"),
+    "lin_vel_z": ({"lin_vel_body": rows([0.0, 0.0, 0.0], [1.0, 0.0, -2.0])}, [0.0, 4.0],
+                  "v_z^2 only"),
+    "ang_vel_xy": ({"ang_vel_body": rows([0.0, 0.0, 5.0], [1.0, 2.0, 5.0])}, [0.0, 5.0],
+                   "yaw rate is free, roll and pitch rates squared"),
+    "orientation": (
+        {"gravity_body": rows([0.0, 0.0, -1.0], [np.sin(tilt), 0.0, -np.cos(tilt)])},
+        [0.0, np.sin(tilt) ** 2], "0 upright, > 0 tilted"),
+    "dof_acc": ({"dof_vel": rows([0.0] * J, [DT, 2 * DT, 0.0, 0.0])}, [0.0, 5.0],
+                "squared joint accelerations (rad/s^2)"),
+    "collision": ({"unsafe_contacts": np.array([0, 3])}, [0.0, 3.0], "counts bodies"),
+    "action_rate": ({"action": rows([0.0] * J, [3.0, 4.0, 0.0, 0.0])}, [0.0, 5.0],
+                    "norm of the action change"),
+    "delta_torques": ({"torques": rows([0.0] * J, [1.0, 2.0, 0.0, 0.0])}, [0.0, 5.0],
+                      "squared torque change"),
+    "torques": ({"torques": rows([0.0] * J, [1.0, -2.0, 0.0, 0.0]),
+                 "last_torques": rows([1.0, -2.0, 0.0, 0.0], [1.0, -2.0, 0.0, 0.0])},
+                [0.0, 5.0], "squared torques, not their change"),
+    "hip_pos": ({"dof_pos": rows([0.0, 0.0, 0.5, 0.5], [0.1, -0.2, 0.5, 0.5])}, [0.0, 0.05],
+                "hip joints only (0, 1); the others are free"),
+    "dof_error": ({"dof_pos": rows([0.0] * J, [0.1, 0.0, 0.0, -0.2])}, [0.0, 0.05],
+                  "squared offsets from the default pose"),
+    "feet_stumble": (
+        {"feet_force": rows([[3.0, 0.0, 1.0], [0.0, 0.0, 0.0]], [[0.0, 0.0, 0.0],
+                                                                  [3.0, 4.0, 1.0]])},
+        [0.0, 1.0], "fires when horizontal force > 4x vertical (3 < 4, 5 > 4)"),
+    "feet_edge": ({"feet_on_edge": np.ones((N, F), dtype=bool), "level": np.array([3, 4])},
+                  [0.0, 2.0], "only above level 3, counts feet"),
+    "feet_air_time": (
+        {"first_contact": np.array([[True, False], [True, False]]),
+         "air_time": rows([0.8, 0.0], [0.2, 0.0])},
+        [0.3, -0.3], "long flights rewarded, short ones penalised, at touch-down"),
+    "base_height": ({"base_height": np.array([TARGET_HEIGHT, TARGET_HEIGHT - 0.1])},
+                    [0.0, 0.01], "zero at the target height"),
+    "pn_distance": ({"terminus_xy": rows([0.3, 0.0], [0.0, 4.0])}, [1.0, -3.0],
+                    "1 inside the reach radius, -0.75 d outside"),
+    "dof_pos_limits": ({"dof_pos": rows([0.9, -0.9, 0.0, 0.0], [1.2, -1.5, 0.0, 0.0])},
+                       [0.0, 0.7], "zero inside the range, overshoot summed outside"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_term(name: str) -> None:
+    changes, expected, why = CASES[name]
+    value = REWARD_TERMS[name](neutral(**changes))
+    assert value.shape == (N,)
+    np.testing.assert_allclose(value, expected, rtol=1e-4, atol=1e-9, err_msg=why)
+
+
+def test_every_registered_term_has_a_case() -> None:
+    assert set(CASES) == set(REWARD_TERMS)
+
+
+def test_neutral_state_has_no_penalty() -> None:
+    state = neutral()
+    bonuses = {"tracking_yaw", "pn_distance"}  # facing the goal; far from the terminus
+    for name, fn in REWARD_TERMS.items():
+        if name not in bonuses:
+            np.testing.assert_allclose(fn(state), 0.0, atol=1e-6, err_msg=name)
+
+
+def test_tracking_goal_vel_is_capped_at_goal_speed() -> None:
+    fast = neutral(lin_vel_world=rows([3.0, 0.0, 0.0], [0.0, 3.0, 0.0]))
+    np.testing.assert_allclose(REWARD_TERMS["tracking_goal_vel"](fast), [1.0, 0.0], atol=1e-4)
+
+
+def test_air_time_is_zero_without_touch_down() -> None:
+    state = neutral(air_time=rows([0.8, 0.8], [0.2, 0.2]))
+    np.testing.assert_array_equal(REWARD_TERMS["feet_air_time"](state), [0.0, 0.0])
+
+
+def test_table6_terms_are_registered() -> None:
+    assert set(table6_weights()) <= set(REWARD_TERMS)
+
+
+def test_active_terms_skips_zero_weights() -> None:
+    terms = active_terms({"torques": -1e-5, "pn_distance": 0.0, "collision": -10.0})
+    assert set(terms) == {"torques", "collision"}
+    assert terms["collision"] == (REWARD_TERMS["collision"], -10.0)
+
+
+def test_active_terms_names_unknown_terms() -> None:
+    with pytest.raises(ValueError, match=r"torqes.*known:.*torques"):
+        active_terms({"torqes": -1.0, "collision": -10.0})
+
+
+def test_compute_rewards_total_is_dt_times_weighted_sum() -> None:
+    state = neutral(unsafe_contacts=np.array([1, 2]),
+                    lin_vel_world=rows([0.4, 0.0, 0.0], [0.8, 0.0, 0.0]))
+    weights = {"collision": -10.0, "tracking_goal_vel": 10.0, "torques": 0.0}
+    total, parts = compute_rewards(state, active_terms(weights))
+    assert set(parts) == {"collision", "tracking_goal_vel"}
+    expected_parts = {"collision": DT * -10.0 * np.array([1.0, 2.0]),
+                      "tracking_goal_vel": DT * 10.0 * np.array([0.5, 1.0])}
+    for name, part in expected_parts.items():
+        np.testing.assert_allclose(parts[name], part, rtol=1e-4)
+    np.testing.assert_allclose(total, sum(expected_parts.values()), rtol=1e-4)
+
+
+def test_compute_rewards_with_no_terms_is_zero() -> None:
+    total, parts = compute_rewards(neutral(), {})
+    assert parts == {}
+    np.testing.assert_array_equal(total, np.zeros(N))
