@@ -1,0 +1,1 @@
+"""Benchmark evaluation: the paper's metrics over episode records, and their tables."""
