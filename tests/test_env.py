@@ -1,0 +1,288 @@
+"""HikingEnv: specs, determinism, partial resets, terminations, depth, divergence, curriculum.
+
+Scenes are built once per module on a one-tile map (``trail.levels=1 trail.variants=1``) and
+shared by the envs of a test; each env is small (2-4 robots) and closed after its test.
+"""
+
+from collections.abc import Callable, Iterator
+
+import mujoco
+import numpy as np
+import pytest
+import torch
+from omegaconf import DictConfig, OmegaConf
+from tensordict import TensorDictBase
+from torchrl.envs.utils import check_env_specs
+
+from legoh import keys
+from legoh.envs.curriculum import update_levels
+from legoh.envs.hiking_env import HikingEnv
+from legoh.envs.robots import CAMERA_NAME
+from legoh.envs.scene import Scene, build_scene
+from legoh.envs.terrain import build_terrain_map
+from tests.conftest import compose_config
+
+ROBOTS = ["h1", "g1"]
+TRAILS = ["flat", "randommix", "ditch", "hurdle", "gap", "forest", "hill"]
+ONE_TILE = ("trail.levels=1", "trail.variants=1")
+
+
+def config(robot: str = "h1", trail: str = "flat", *overrides: str) -> DictConfig:
+    """A composed run config on a one-tile map."""
+    return compose_config(f"robot={robot}", f"trail={trail}", *ONE_TILE, *overrides)
+
+
+def scene_of(cfg: DictConfig, boxes: np.ndarray | None = None) -> Scene:
+    """The scene of ``cfg``'s map, with extra ``boxes`` (M, 7) rows added when given."""
+    terrain = build_terrain_map(OmegaConf.to_object(cfg.trail), cfg.seed)
+    if boxes is not None:
+        terrain.boxes = np.vstack([terrain.boxes, boxes]).astype(np.float32)
+    return build_scene(OmegaConf.to_object(cfg.robot), terrain, cfg.sim.dt)
+
+
+@pytest.fixture(scope="module")
+def flat() -> tuple[DictConfig, Scene]:
+    cfg = config()
+    return cfg, scene_of(cfg)
+
+
+EnvFactory = Callable[..., HikingEnv]
+
+
+@pytest.fixture
+def make(flat: tuple[DictConfig, Scene]) -> Iterator[EnvFactory]:
+    """``make(num_envs, seed=0, cfg=None, scene=None, **env_fields)``: a HikingEnv on the
+    shared flat scene unless told otherwise; every env made is closed after the test."""
+    made: list[HikingEnv] = []
+
+    def factory(num_envs: int = 4, seed: int = 0, cfg: DictConfig | None = None,
+                scene: Scene | None = None, **env_fields: object) -> HikingEnv:
+        if cfg is None:
+            cfg, scene = flat
+        env_cfg = OmegaConf.to_object(cfg.env)
+        env_cfg.num_envs = num_envs
+        for name, value in env_fields.items():
+            setattr(env_cfg, name, value)
+        env = HikingEnv(OmegaConf.to_object(cfg.robot), OmegaConf.to_object(cfg.trail),
+                        env_cfg, OmegaConf.to_object(cfg.sim), seed=seed, scene=scene)
+        made.append(env)
+        return env
+
+    yield factory
+    for env in made:
+        env.close()
+
+
+def zero_step(env: HikingEnv, td: TensorDictBase) -> TensorDictBase:
+    """One step holding the default pose; returns the ``next`` tensordict."""
+    return env.step(td.set(keys.ACTION, torch.zeros(env.action_spec.shape)))["next"]
+
+
+def random_policy(env: HikingEnv, seed: int) -> Callable[[TensorDictBase], TensorDictBase]:
+    """Uniform actions in [-1, 1] from a seeded torch generator."""
+    gen = torch.Generator().manual_seed(seed)
+
+    def act(td: TensorDictBase) -> TensorDictBase:
+        return td.set(keys.ACTION, torch.rand(env.action_spec.shape, generator=gen) * 2 - 1)
+
+    return act
+
+
+def flags(td: TensorDictBase, key: str | tuple[str, str]) -> list[bool]:
+    """A per-env bool entry as a list."""
+    return td[key].reshape(-1).tolist()
+
+
+# --------------------------------------------------------------------------- specs
+@pytest.mark.parametrize("trail", TRAILS)
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_check_env_specs(make: EnvFactory, robot: str, trail: str) -> None:
+    cfg = config(robot, trail)
+    check_env_specs(make(2, cfg=cfg, scene=scene_of(cfg)))
+
+
+def test_check_env_specs_with_depth(make: EnvFactory) -> None:
+    cfg = config("h1", "flat", "env.depth.enabled=true")
+    check_env_specs(make(2, cfg=cfg, scene=scene_of(cfg)))
+
+
+# --------------------------------------------------------------------------- determinism
+def rollout(env: HikingEnv, steps: int = 100) -> TensorDictBase:
+    return env.rollout(steps, random_policy(env, seed=7), break_when_any_done=False)
+
+
+def test_same_seed_same_observations(make: EnvFactory) -> None:
+    a, b = rollout(make(2, seed=3)), rollout(make(2, seed=3))
+    obs_keys = [k for k in a.keys(True, True) if "obs" in k or "expert" in k]
+    assert len(obs_keys) >= 10  # root and ("next", ...) observations
+    for key in obs_keys:
+        assert torch.equal(a[key], b[key]), key
+
+
+def test_different_seed_different_observations(make: EnvFactory) -> None:
+    a, b = rollout(make(2, seed=3), 20), rollout(make(2, seed=4), 20)
+    assert not torch.equal(a["next", "obs", "proprio"], b["next", "obs", "proprio"])
+
+
+# --------------------------------------------------------------------------- resets
+def test_partial_reset_touches_only_masked_envs(make: EnvFactory) -> None:
+    env = make(4)
+    td = env.reset()
+    for _ in range(15):
+        td = zero_step(env, td)
+    held = td.clone()
+    qpos = env.sim.qpos.copy()
+    mask = torch.tensor([True, False, True, False])
+    keep = ~mask.numpy()
+    out = env.reset(td.clone().set("_reset", mask[:, None]))
+
+    assert torch.equal(td["obs", "proprio_history"], held["obs", "proprio_history"]), (
+        "a reset changed tensors returned earlier")
+    np.testing.assert_array_equal(env.sim.qpos[keep], qpos[keep])
+    assert not np.allclose(env.sim.qpos[~keep, :2], qpos[~keep, :2])
+    np.testing.assert_array_equal(env.steps, [0, 15, 0, 15])
+    for key in out["obs"].keys():
+        assert torch.equal(out["obs", key][keep], held["obs", key][keep]), key
+
+    after = zero_step(env, out)
+    history, before = after["obs", "proprio_history"], held["obs", "proprio_history"]
+    # The kept envs' history moved on by exactly one step (no entry from the reset)...
+    assert torch.equal(history[keep, :-1], before[keep, 1:])
+    # ...and the reset envs' history holds only the reset and this step.
+    assert not history[~keep, :-2].any()
+    assert history[~keep, -2:].abs().sum(-1).gt(0).all()
+
+
+# --------------------------------------------------------------------------- terminations
+@pytest.mark.parametrize("axis", [1, 2], ids=["roll", "pitch"])
+def test_tipped_robot_falls(make: EnvFactory, axis: int) -> None:
+    env = make(2)
+    td = env.reset()
+    tilt = np.zeros(4)
+    tilt[0], tilt[axis] = np.cos(np.pi / 4), np.sin(np.pi / 4)  # 90 degrees
+    env.sim.qpos[0, 3:7] = tilt
+    out = zero_step(env, td)
+    assert flags(out, keys.FELL) == [True, False]
+    assert flags(out, keys.TERMINATED) == [True, False]
+    assert flags(out, keys.TRUNCATED) == [False, False]
+    assert flags(out, keys.DONE) == [True, False]
+
+
+def test_robot_at_terminus_reaches(make: EnvFactory) -> None:
+    env = make(2)
+    td = env.reset()
+    env.sim.qpos[1, 0:2] = env.trails.terminus[env.tile[1]]
+    out = zero_step(env, td)
+    assert flags(out, keys.REACHED) == [False, True]
+    assert flags(out, keys.FELL) == [False, False]
+    assert flags(out, keys.TERMINATED) == [False, True]
+    assert flags(out, keys.TRUNCATED) == [False, False]
+
+
+def test_timeout_truncates(make: EnvFactory) -> None:
+    env = make(2, episode_length_s=0.1)  # 5 policy steps at 50 Hz
+    assert env.max_steps == 5
+    td = env.reset()
+    for step in range(1, 6):
+        td = zero_step(env, td)
+        assert flags(td, keys.TRUNCATED) == [step == 5] * 2, step
+        assert flags(td, keys.TERMINATED) == [False, False]
+    assert flags(td, keys.DONE) == [True, True]
+
+
+# --------------------------------------------------------------------------- failures
+def test_nan_action_names_env_indices(make: EnvFactory) -> None:
+    env = make(4)
+    td = env.reset()
+    action = torch.zeros(env.action_spec.shape)
+    action[1, 0], action[3, 2] = float("nan"), float("inf")
+    with pytest.raises(ValueError, match=r"\[1, 3\]"):
+        env.step(td.set(keys.ACTION, action))
+
+
+@pytest.mark.parametrize("bad_qvel", [np.nan, 1e6], ids=["nan", "huge"])
+def test_diverged_env_is_reset_and_truncated(make: EnvFactory, bad_qvel: float,
+                                             tmp_path, monkeypatch) -> None:
+    monkeypatch.chdir(tmp_path)  # MuJoCo writes its instability warning to MUJOCO_LOG.TXT
+    env = make(3)
+    td = env.reset()
+    for _ in range(3):
+        td = zero_step(env, td)
+    env.sim.qvel[1] = bad_qvel
+    out = zero_step(env, td)
+    assert env.diverged_count == 1
+    assert flags(out, keys.TRUNCATED) == [False, True, False]
+    assert flags(out, keys.TERMINATED) == [False, False, False]
+    np.testing.assert_array_equal(env.steps, [4, 0, 4])
+    start = env.trails.start[env.tile[1], :2]
+    assert np.abs(env.sim.qpos[1, :2] - start).max() <= env.cfg.spawn_noise + 1e-9
+    for _ in range(3):
+        out = zero_step(env, out)
+        for key in out["obs"].keys():
+            assert torch.isfinite(out["obs", key]).all(), key
+    assert env.diverged_count == 1
+    np.testing.assert_array_equal(env.steps, [7, 3, 7])
+
+
+# --------------------------------------------------------------------------- depth
+BOX_AHEAD = 1.2  # m from the spawn point to the box face, along the trail (+x)
+
+
+def test_depth_sees_box_ahead(make: EnvFactory) -> None:
+    # Odd image sizes put a pixel centre on the optical axis: its depth is the ray length.
+    cfg = config("h1", "flat", "env.depth.enabled=true", "env.depth.width=33",
+                 "env.depth.height=25")
+    tile = build_terrain_map(OmegaConf.to_object(cfg.trail), cfg.seed).tiles[0]
+    face_x = tile.start[0] + BOX_AHEAD
+    half = np.array([0.1, 2.0, 1.5])  # m: thin, wide and tall wall
+    box = np.array([[face_x + half[0], tile.start[1], tile.start[2] + half[2], *half, 0.0]])
+    scene = scene_of(cfg, box)
+    env = make(2, cfg=cfg, scene=scene, spawn_noise=0.0)
+    depth = env.reset()["obs", "depth"]  # (N, T, H, W), normalised
+    centre = (depth[:, -1, 12, 16].numpy() + 0.5) * env.cfg.depth.far
+
+    # Expected: the optical axis of the camera (posed by a forward pass of the same state)
+    # meets the plane x = face_x.
+    data = mujoco.MjData(scene.model)
+    cam = scene.model.camera(CAMERA_NAME).id
+    for i in range(env.num_envs):
+        data.qpos[:] = env.sim.qpos[i]
+        mujoco.mj_forward(scene.model, data)
+        pos, axis = data.cam_xpos[cam], -data.cam_xmat[cam].reshape(3, 3)[:, 2]
+        expected = (face_x - pos[0]) / axis[0]
+        hit_z = pos[2] + expected * axis[2]
+        assert 0.3 < expected < env.cfg.depth.far and hit_z > tile.start[2]  # on the wall
+        assert centre[i] == pytest.approx(expected, abs=0.03)
+
+
+# --------------------------------------------------------------------------- curriculum
+def levels_after(levels: list[int], covered: list[float], reached: list[bool],
+                 num_levels: int = 5, seed: int = 0) -> np.ndarray:
+    n = len(levels)
+    return update_levels(np.array(levels), np.array(covered, dtype=float), np.full(n, 100.0),
+                         np.array(reached), num_levels, np.random.default_rng(seed))
+
+
+def test_curriculum_up_down_stay() -> None:
+    new = levels_after([2, 2, 2, 2, 2], [90.0, 60.0, 30.0, 80.0, 40.0], [False] * 5)
+    np.testing.assert_array_equal(new, [3, 2, 1, 2, 2])  # > 80% up, < 40% down, else stay
+
+
+def test_curriculum_reached_counts_as_up() -> None:
+    np.testing.assert_array_equal(levels_after([1, 1], [5.0, 5.0], [True, False]), [2, 0])
+
+
+def test_curriculum_bottom_level_stays() -> None:
+    np.testing.assert_array_equal(levels_after([0], [0.0], [False]), [0])
+
+
+def test_curriculum_past_top_goes_to_random_level() -> None:
+    new = levels_after([4] * 200, [95.0] * 200, [False] * 200)
+    assert new.min() >= 0 and new.max() <= 4
+    assert len(np.unique(new)) > 1
+
+
+def test_curriculum_zero_expected_distance() -> None:
+    new = update_levels(np.array([1]), np.array([0.0]), np.array([0.0]), np.array([False]),
+                        5, np.random.default_rng(0))
+    np.testing.assert_array_equal(new, [0])
