@@ -167,12 +167,12 @@ def make_oracle_actor_critic(dims: OracleInputDims, action_dim: int, action_boun
         action_dim: A. action_bound: the env's action clip; the mean is ``bound * tanh``.
         cfg: network sizes. action_spec: optional, attached to the actor (not enforced).
         use_adaptation: take the privileged latent from the adaptation module (proprio
-            history) instead of the privileged encoder. The actor then also holds the
-            privileged encoder unused? No: it holds the adaptation module in its place, at
-            the same position, so the scandot encoder and the MLP keep their parameter
-            names and a privileged actor's state dict loads with ``strict=False`` (only the
-            latent source differs). With ``cfg.raw_privileged`` the actor still reads
-            ``("obs","privileged")``; set it False for a policy free of privileged input.
+            history) instead of the privileged encoder. The adaptation module takes the
+            encoder's place (same position in the sequence), so the scandot encoder and
+            the MLP keep their parameter names and a privileged actor's state dict loads
+            with ``strict=False`` (only the latent source differs). With
+            ``cfg.raw_privileged`` the actor still reads ``("obs","privileged")``; set it
+            False for a policy free of privileged input.
 
     Returns:
         actor: reads proprio, scandots, privileged, expert goals (and the history if
