@@ -28,6 +28,7 @@ class SimConfig:
     dt: float = 0.005  # s, MuJoCo timestep
     decimation: int = 4  # physics steps per policy step
     threads: int = 0  # worker threads for batched stepping; 0: one per CPU core
+    hfield_chunk: float = 4.0  # m, side of the height-field chunks (fast ray casts, docs/env.md)
 
 
 @dataclass

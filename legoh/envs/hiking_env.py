@@ -98,7 +98,8 @@ class HikingEnv(EnvBase):
         self.num_envs = n = env.num_envs
         self.dt = sim.dt * sim.decimation
         self.max_steps = int(round(env.episode_length_s / self.dt))
-        self.scene = scene or build_scene(robot, build_terrain_map(trail, seed), sim.dt)
+        self.scene = scene or build_scene(robot, build_terrain_map(trail, seed), sim.dt,
+                                            hfield_chunk=sim.hfield_chunk)
         self.robot = self.scene.robot
         self.terrain = self.scene.terrain
         self.trails = TrailTable.from_map(self.terrain)
@@ -129,6 +130,7 @@ class HikingEnv(EnvBase):
         self._alloc_buffers()
         self._make_specs()
         self.global_steps = 0
+        self.frame_clock = 0
         self.diverged_count = 0
 
     # ----------------------------------------------------------------- set-up
@@ -294,7 +296,8 @@ class HikingEnv(EnvBase):
         self.last_action = action
         self.last_dof_vel = state.dof_vel
         self.last_torques = state.torques
-        if self.depth_cam is not None and self.steps[0] % self.cfg.depth.every == 0:
+        self.frame_clock += 1  # one clock for all envs: every env gets a frame on the same step
+        if self.depth_cam is not None and self.frame_clock % self.cfg.depth.every == 0:
             frame = self._render_depth(np.arange(self.num_envs))
             self.depth = np.concatenate([self.depth[:, 1:], frame[:, None]], axis=1)
         out = self._observe(reached, fell)

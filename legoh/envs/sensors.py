@@ -48,6 +48,8 @@ class DepthRaycaster:
         dirs = camera_ray_directions(fovy_deg, width, height).reshape(-1, 3)
         self._dirs = dirs
         self._cos = -dirs[:, 2]  # ray length -> planar depth
+        # Geoms beyond the longest ray (the image corner at the far plane) are never tested.
+        self._cutoff_scale = 1.0 / float(self._cos.min())
         self.threads = threads or os.cpu_count() or 1
         self._pool = ThreadPoolExecutor(self.threads) if self.threads > 1 else None
 
@@ -62,7 +64,7 @@ class DepthRaycaster:
             geomid = np.empty(nray, dtype=np.int32)
             for i in rows:
                 mujoco.mj_multiRay(self.model, data, cam_pos[i], vec[i], WORLD_GROUPS, True,
-                                   -1, geomid, dist[i], None, nray, self.far * 2.0)
+                                   -1, geomid, dist[i], None, nray, self.far * self._cutoff_scale)
 
         chunks = [range(k, n, self.threads) for k in range(self.threads)]
         if self._pool is None:

@@ -1,0 +1,247 @@
+"""HikingEnv speed against the raw physics ceiling and two peers, in one run.
+
+For H1 and G1 on RandomMix level 2 and N in {16, 64, 256}:
+  * ceiling: ``mujoco.rollout`` of the same model, same N, same substeps, same threads,
+    holding the default pose (no observations, rewards or resets);
+  * HikingEnv without depth and with depth (10 Hz: a frame every 5 policy steps), random
+    actions through the public ``env.step`` / ``step_and_maybe_reset`` path;
+  * depth cost: ray casting (default) vs MuJoCo's EGL renderer, per frame;
+  * peers: gymnasium's Humanoid-v5 and torchrl's ``HumanoidEnv`` (MuJoCo C backend), one env.
+
+    python experiments/bench_env.py [--quick]
+
+Writes experiments/results/bench_env.{json,md}. Absolute numbers depend on the machine;
+the ratios in the same run are the figures to read.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import json
+import os
+import platform
+import time
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import torch
+from mujoco import rollout
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+from hydra import compose, initialize_config_dir  # noqa: E402
+
+from legoh.config import register_configs  # noqa: E402
+from legoh.envs.hiking_env import make_env  # noqa: E402
+from legoh.envs.robots import CAMERA_NAME  # noqa: E402
+
+print = functools.partial(print, flush=True)  # noqa: A001 - progress shows as it happens
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "experiments" / "results"
+LEVEL = 2
+
+
+def compose_cfg(robot: str, depth: bool):
+    register_configs()
+    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
+        return compose("config", overrides=[
+            f"robot={robot}", "trail=randommix", f"env.depth.enabled={str(depth).lower()}",
+            "env.curriculum.enabled=false"])
+
+
+def env_rate(robot: str, n: int, depth: bool, steps: int, scene=None) -> tuple[float, object]:
+    """Policy steps/s of HikingEnv at level 2 with random actions (resets included)."""
+    cfg = compose_cfg(robot, depth)
+    env = make_env(cfg, num_envs=n)
+    if scene is not None:
+        env.close()
+        from omegaconf import OmegaConf
+
+        from legoh.envs.hiking_env import HikingEnv
+        env_cfg = OmegaConf.to_object(cfg.env)
+        env_cfg.num_envs = n
+        env = HikingEnv(OmegaConf.to_object(cfg.robot), OmegaConf.to_object(cfg.trail),
+                        env_cfg, OmegaConf.to_object(cfg.sim), seed=0, scene=scene)
+    env.level[:] = LEVEL
+    td = env.reset()
+    gen = torch.Generator().manual_seed(0)
+    for i in range(steps + 5):
+        if i == 5:
+            t0 = time.perf_counter()
+        td["action"] = torch.randn(n, env.num_actions, generator=gen) * 0.5
+        _, td = env.step_and_maybe_reset(td)
+    rate = n * steps / (time.perf_counter() - t0)
+    return rate, env
+
+
+def ceiling_rate(env, steps: int) -> float:
+    """mujoco.rollout of the same model, N, substeps and threads: the physics alone."""
+    sim = env.sim
+    n = env.num_envs
+    pool = rollout.Rollout(nthread=sim.threads)
+    datas = [mujoco.MjData(env.scene.model) for _ in range(sim.threads)]
+    state0 = sim.state.copy()
+    control = np.tile(env.ctrl[:, None], (1, sim.substeps, 1))
+    out = np.zeros((n, sim.substeps, state0.shape[1]))
+    sens = np.zeros((n, sim.substeps, env.scene.model.nsensordata))
+    state = state0.copy()
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        pool.rollout([env.scene.model] * n, datas, state, control, nstep=sim.substeps, state=out,
+                     sensordata=sens, skip_checks=True)
+        state[:] = out[:, -1]
+    rate = n * steps / (time.perf_counter() - t0)
+    pool.close()
+    return rate
+
+
+def depth_cost(env, frames: int, egl_frames: int = 4) -> dict[str, float]:
+    """Seconds per depth frame per env: ray casting (the env's) vs the EGL renderer."""
+    n = env.num_envs
+    ids = np.arange(n)
+    t0 = time.perf_counter()
+    for _ in range(frames):
+        env._render_depth(ids)
+    ray = (time.perf_counter() - t0) / (frames * n)
+
+    model = env.scene.model
+    d = env.cfg.depth
+    data = mujoco.MjData(model)
+    egl = float("nan")
+    try:
+        # The renderer draws the whole height field every frame (millions of triangles on a
+        # trail map), so a few frames are enough to time it.
+        with mujoco.Renderer(model, height=d.height, width=d.width) as renderer:
+            renderer.enable_depth_rendering()
+            count = min(n, egl_frames)
+            t0 = time.perf_counter()
+            for i in range(count):
+                data.qpos[:] = env.sim.qpos[i]
+                mujoco.mj_kinematics(model, data)
+                mujoco.mj_camlight(model, data)
+                renderer.update_scene(data, camera=CAMERA_NAME)
+                renderer.render()
+            egl = (time.perf_counter() - t0) / count
+    except Exception as err:  # no EGL on this machine: report, do not fail the benchmark
+        print(f"  EGL renderer unavailable: {err}")
+    return {"raycast_s_per_frame": ray, "egl_s_per_frame": egl}
+
+
+def gymnasium_rate(steps: int) -> float | None:
+    try:
+        import gymnasium as gym
+
+        env = gym.make("Humanoid-v5")
+    except Exception as err:
+        print(f"  gymnasium Humanoid-v5 unavailable: {err}")
+        return None
+    env.reset(seed=0)
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        _, _, term, trunc, _ = env.step(env.action_space.sample())
+        if term or trunc:
+            env.reset()
+    rate = steps / (time.perf_counter() - t0)
+    env.close()
+    return rate
+
+
+def torchrl_humanoid_rate(steps: int) -> float | None:
+    try:
+        from torchrl.envs.custom.mujoco import HumanoidEnv
+
+        env = HumanoidEnv(backend="mujoco")
+    except Exception as err:
+        print(f"  torchrl HumanoidEnv unavailable: {err}")
+        return None
+    td = env.reset()
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        td = env.rand_action(td)
+        _, td = env.step_and_maybe_reset(td)
+    rate = steps / (time.perf_counter() - t0)
+    env.close()
+    return rate
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="N=16 only, fewer steps")
+    args = parser.parse_args()
+    sizes = [16] if args.quick else [16, 64, 256]
+    rows = []
+    for robot in ["h1", "g1"]:
+        for n in sizes:
+            steps = max(10, (400 if not args.quick else 100) // max(1, n // 16))
+            rate_env, env = env_rate(robot, n, depth=False, steps=steps)
+            rate_ceiling = ceiling_rate(env, steps)
+            env.close()
+            rate_depth, denv = env_rate(robot, n, depth=True, steps=steps,
+                                        scene=env.scene)
+            cost = depth_cost(denv, frames=3)
+            denv.close()
+            physics_s = 1.0 / rate_ceiling  # per env per policy step
+            depth_s = cost["raycast_s_per_frame"] / denv.cfg.depth.every
+            row = {
+                "robot": robot, "num_envs": n, "threads": env.sim.threads,
+                "ceiling_steps_per_s": rate_ceiling, "env_steps_per_s": rate_env,
+                "env_depth_steps_per_s": rate_depth,
+                "env_over_ceiling": rate_env / rate_ceiling,
+                "depth_env_over_ceiling": rate_depth / rate_ceiling,
+                "depth_10hz_over_physics": depth_s / physics_s,
+                **cost,
+                "egl_over_raycast": cost["egl_s_per_frame"] / cost["raycast_s_per_frame"],
+            }
+            rows.append(row)
+            print(f"{robot} N={n:4d}: ceiling {rate_ceiling:8.0f}  env {rate_env:8.0f} "
+                  f"({row['env_over_ceiling']:.0%})  env+depth {rate_depth:8.0f} "
+                  f"({row['depth_env_over_ceiling']:.0%})  depth@10Hz/physics "
+                  f"{row['depth_10hz_over_physics']:.2f}  EGL/raycast "
+                  f"{row['egl_over_raycast']:.2f}")
+    peer_steps = 300 if args.quick else 1000
+    peers = {"gymnasium_humanoid_v5_steps_per_s": gymnasium_rate(peer_steps),
+             "torchrl_humanoid_c_steps_per_s": torchrl_humanoid_rate(peer_steps)}
+    print(peers)
+    result = {"machine": {"cpus": os.cpu_count(), "platform": platform.platform(),
+                          "mujoco": mujoco.__version__, "torch": torch.__version__},
+              "level": LEVEL, "trail": "randommix", "rows": rows, "peers": peers}
+    write_results(result, quick=args.quick)
+
+
+def write_results(result: dict, quick: bool) -> None:
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    stem = "bench_env_quick" if quick else "bench_env"
+    (RESULTS / f"{stem}.json").write_text(json.dumps(result, indent=2))
+    lines = [
+        "# HikingEnv speed (policy steps/s, 50 Hz policy, 4 substeps)", "",
+        f"RandomMix level {result['level']}, {result['machine']['cpus']} CPUs, "
+        f"MuJoCo {result['machine']['mujoco']}. Ceiling: `mujoco.rollout` of the same model, "
+        "N, substeps and threads. Depth: 64 x 48 ray-cast frame every 5 policy steps.", "",
+        "| robot | N | ceiling | env | env / ceiling | env + depth | (env+depth) / ceiling "
+        "| depth@10Hz / physics | EGL / ray cast (per frame) |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in result["rows"]:
+        lines.append(
+            f"| {r['robot']} | {r['num_envs']} | {r['ceiling_steps_per_s']:.0f} | "
+            f"{r['env_steps_per_s']:.0f} | {r['env_over_ceiling']:.0%} | "
+            f"{r['env_depth_steps_per_s']:.0f} | {r['depth_env_over_ceiling']:.0%} | "
+            f"{r['depth_10hz_over_physics']:.2f} | {r['egl_over_raycast']:.2f} |")
+    p = result["peers"]
+
+    def fmt(x: float | None) -> str:
+        return "n/a" if x is None else f"{x:.0f}"
+
+    lines += ["", "Peers (one env, their own models and frame skips: gymnasium Humanoid-v5 "
+              "steps 5 substeps of 3 ms, torchrl HumanoidEnv its own):", "",
+              f"* gymnasium Humanoid-v5: {fmt(p['gymnasium_humanoid_v5_steps_per_s'])} steps/s",
+              f"* torchrl HumanoidEnv (MuJoCo C backend): "
+              f"{fmt(p['torchrl_humanoid_c_steps_per_s'])} steps/s", ""]
+    (RESULTS / f"{stem}.md").write_text("\n".join(lines))
+    print(f"wrote {RESULTS / stem}.json and .md")
+
+
+if __name__ == "__main__":
+    main()
