@@ -24,12 +24,12 @@ import platform
 import time
 from pathlib import Path
 
-import mujoco
-import numpy as np
-import torch
-from mujoco import rollout
+os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco is imported: headless rendering
 
-os.environ.setdefault("MUJOCO_GL", "egl")
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
+import torch  # noqa: E402
+from mujoco import rollout  # noqa: E402
 
 from hydra import compose, initialize_config_dir  # noqa: E402
 
@@ -43,20 +43,21 @@ RESULTS = ROOT / "experiments" / "results"
 LEVEL = 2
 
 
-def compose_cfg(robot: str, depth: bool):
+def compose_cfg(robot: str, depth: bool, extra: list[str] | None = None):
     register_configs()
     with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
         return compose("config", overrides=[
             f"robot={robot}", "trail=randommix", f"env.depth.enabled={str(depth).lower()}",
-            "env.curriculum.enabled=false"])
+            "env.curriculum.enabled=false", *(extra or [])])
 
 
-def env_rate(robot: str, n: int, depth: bool, steps: int, scene=None) -> tuple[float, object]:
+def env_rate(robot: str, n: int, depth: bool, steps: int, scene=None,
+             extra: list[str] | None = None) -> tuple[float, object]:
     """Policy steps/s of HikingEnv at level 2 with random actions (resets included)."""
-    cfg = compose_cfg(robot, depth)
-    env = make_env(cfg, num_envs=n)
-    if scene is not None:
-        env.close()
+    cfg = compose_cfg(robot, depth, extra)
+    if scene is None:
+        env = make_env(cfg, num_envs=n)
+    else:
         from omegaconf import OmegaConf
 
         from legoh.envs.hiking_env import HikingEnv
@@ -116,6 +117,8 @@ def depth_cost(env, frames: int, egl_frames: int = 4) -> dict[str, float]:
         with mujoco.Renderer(model, height=d.height, width=d.width) as renderer:
             renderer.enable_depth_rendering()
             count = min(n, egl_frames)
+            if count == 0:
+                raise RuntimeError("not asked for")
             t0 = time.perf_counter()
             for i in range(count):
                 data.qpos[:] = env.sim.qpos[i]
@@ -125,7 +128,8 @@ def depth_cost(env, frames: int, egl_frames: int = 4) -> dict[str, float]:
                 renderer.render()
             egl = (time.perf_counter() - t0) / count
     except Exception as err:  # no EGL on this machine: report, do not fail the benchmark
-        print(f"  EGL renderer unavailable: {err}")
+        if egl_frames:
+            print(f"  EGL renderer unavailable: {err}")
     return {"raycast_s_per_frame": ray, "egl_s_per_frame": egl}
 
 
@@ -182,6 +186,13 @@ def main() -> None:
                                         scene=env.scene)
             cost = depth_cost(denv, frames=3)
             denv.close()
+            if n == 64:  # what resolution costs: the default and two larger images
+                for w, h in [(48, 36), (64, 48)]:
+                    _, big = env_rate(robot, n, depth=True, steps=1, scene=env.scene,
+                                      extra=[f"env.depth.width={w}", f"env.depth.height={h}"])
+                    cost[f"raycast_s_per_frame_{w}x{h}"] = depth_cost(big, 3, 0)[
+                        "raycast_s_per_frame"]
+                    big.close()
             physics_s = 1.0 / rate_ceiling  # per env per policy step
             depth_s = cost["raycast_s_per_frame"] / denv.cfg.depth.every
             row = {
@@ -218,7 +229,7 @@ def write_results(result: dict, quick: bool) -> None:
         "# HikingEnv speed (policy steps/s, 50 Hz policy, 4 substeps)", "",
         f"RandomMix level {result['level']}, {result['machine']['cpus']} CPUs, "
         f"MuJoCo {result['machine']['mujoco']}. Ceiling: `mujoco.rollout` of the same model, "
-        "N, substeps and threads. Depth: 64 x 48 ray-cast frame every 5 policy steps.", "",
+        "N, substeps and threads. Depth: 32 x 24 ray-cast frame every 5 policy steps (the default).", "",
         "| robot | N | ceiling | env | env / ceiling | env + depth | (env+depth) / ceiling "
         "| depth@10Hz / physics | EGL / ray cast (per frame) |",
         "|---|---|---|---|---|---|---|---|---|",
@@ -229,6 +240,15 @@ def write_results(result: dict, quick: bool) -> None:
             f"{r['env_steps_per_s']:.0f} | {r['env_over_ceiling']:.0%} | "
             f"{r['env_depth_steps_per_s']:.0f} | {r['depth_env_over_ceiling']:.0%} | "
             f"{r['depth_10hz_over_physics']:.2f} | {r['egl_over_raycast']:.2f} |")
+    lines += ["", "Depth cost by resolution at N=64 (ray cast, seconds per frame per env; "
+              "physics: seconds per policy step per env from the ceiling):", "",
+              "| robot | 32x24 | 48x36 | 64x48 | physics per step |", "|---|---|---|---|---|"]
+    for r in result["rows"]:
+        if "raycast_s_per_frame_64x48" in r:
+            lines.append(f"| {r['robot']} | {r['raycast_s_per_frame'] * 1e3:.2f} ms | "
+                         f"{r['raycast_s_per_frame_48x36'] * 1e3:.2f} ms | "
+                         f"{r['raycast_s_per_frame_64x48'] * 1e3:.2f} ms | "
+                         f"{1e3 / r['ceiling_steps_per_s']:.3f} ms |")
     p = result["peers"]
 
     def fmt(x: float | None) -> str:

@@ -35,4 +35,7 @@ FOOT_CONTACTS = ("info", "foot_contacts")  # int: feet in contact
 UNSAFE_COLLISIONS = ("info", "unsafe_collisions")  # int: non-foot bodies touching the world
 LEVEL = ("info", "level")  # int: the env's terrain level
 CATEGORY = ("info", "category")  # int: index of the env's trail category
+TILE = ("info", "tile")  # int: index of the env's tile in the terrain map
+WAYPOINT_COUNT = ("info", "waypoint_count")  # int: expert waypoints on the env's trail
+BASE_POS = ("info", "base_pos")  # (3,) float: base position, world frame, m
 REWARD_TERMS = ("info", "reward_terms")  # sub-dict: one (1,) float per reward term

@@ -37,8 +37,8 @@ class DepthConfig:
     enabled: bool = False  # stages that need no depth do not pay for it
     every: int = 5  # policy steps between frames (10 Hz at 50 Hz)
     frames: int = 4  # frame history length
-    width: int = 64  # pixels (overrides robot.camera.width)
-    height: int = 48  # pixels
+    width: int = 32  # pixels: the cost of depth grows with pixels (experiments/bench_env.py)
+    height: int = 24  # pixels
     far: float = 3.0  # m: range clip
 
 

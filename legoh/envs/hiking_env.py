@@ -36,6 +36,7 @@ from legoh.envs.terrain import TerrainMap, build_terrain_map
 # Scandots: Extreme Parkour's 12 x 11 grid in the robot's yaw frame.
 SCAN_X = np.linspace(-0.45, 1.2, 12)
 SCAN_Y = np.linspace(-0.75, 0.75, 11)
+SCAN_XY = np.stack(np.meshgrid(SCAN_X, SCAN_Y, indexing="ij"), -1).reshape(-1, 2)  # (132, 2)
 NUM_EXPERT_GOALS = 3
 ANG_VEL_SCALE, DOF_VEL_SCALE = 0.25, 0.05  # observation scales (legged_gym)
 
@@ -186,6 +187,9 @@ class HikingEnv(EnvBase):
             "unsafe_collisions": Unbounded(shape=(n,), dtype=torch.int64),
             "level": Unbounded(shape=(n,), dtype=torch.int64),
             "category": Unbounded(shape=(n,), dtype=torch.int64),
+            "tile": Unbounded(shape=(n,), dtype=torch.int64),
+            "waypoint_count": Unbounded(shape=(n,), dtype=torch.int64),
+            "base_pos": Unbounded(shape=(n, 3), dtype=f32),
             "reward_terms": Composite({k: Unbounded(shape=(n,), dtype=f32)
                                        for k in self.reward_terms}, shape=(n,)),
         }
@@ -218,6 +222,7 @@ class HikingEnv(EnvBase):
         none = np.zeros(self.num_envs, dtype=bool)
         fresh = none.copy()
         fresh[ids] = True  # only reset envs get a new history entry; the others keep theirs
+        self._update_base()
         return self._observe(none, none, fresh)
 
     def _reset_envs(self, ids: np.ndarray) -> None:
@@ -284,6 +289,7 @@ class HikingEnv(EnvBase):
         self.global_steps += self.num_envs
 
         diverged = self._handle_divergence(time_before)
+        self._update_base()
         state = self._step_state(action)
         reward, parts = compute_rewards(state, self.reward_terms)
         self._last_parts = parts
@@ -332,15 +338,20 @@ class HikingEnv(EnvBase):
         return bad
 
     # ----------------------------------------------------------------- state
-    def _base(self) -> tuple[np.ndarray, np.ndarray]:
+    def _update_base(self) -> None:
+        """Base position (N, 3), rotation (N, 3, 3) and yaw (N,) of the current physics
+        state, computed once after each step or reset and read by everything after it."""
         qpos = self.sim.qpos
-        return qpos[:, 0:3], math3d.quat_to_mat(qpos[:, 3:7])
+        rot = math3d.quat_to_mat(qpos[:, 3:7])
+        self._kin = (qpos[:, 0:3].copy(), rot, math3d.roll_pitch_yaw(rot)[2])
+
+    def _base(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        return self._kin
 
     def _step_state(self, action: np.ndarray) -> StepState:
         """Derived quantities for rewards, plus the step's bookkeeping (air time, waypoints)."""
         sd, sl = self.sim.sensordata, self.scene.sensors
-        pos, rot = self._base()
-        _, _, yaw = math3d.roll_pitch_yaw(rot)
+        pos, rot, yaw = self._base()
         qvel = self.sim.qvel
         nf = len(self.robot.feet_bodies)
         contact = sd[:, :, sl.feet_contact].reshape(self.num_envs, -1, nf, 4)
@@ -415,7 +426,7 @@ class HikingEnv(EnvBase):
         return np.clip(done / np.maximum(self.trails.length[tile], 1e-6), 0.0, 1.0)
 
     def _fell(self, s: StepState) -> np.ndarray:
-        _, rot = self._base()
+        _, rot, _ = self._base()
         roll, pitch, _ = math3d.roll_pitch_yaw(rot)
         low = s.base_height < self.cfg.min_base_height * self.robot.nominal_base_height
         return (np.abs(roll) > self.cfg.max_roll) | (np.abs(pitch) > self.cfg.max_pitch) | low
@@ -434,8 +445,7 @@ class HikingEnv(EnvBase):
         """Observations of all envs; ``advance`` (N,) bool: whose history takes the new
         proprioception (default all)."""
         n = self.num_envs
-        pos, rot = self._base()
-        _, _, yaw = math3d.roll_pitch_yaw(rot)
+        pos, rot, yaw = self._base()
         qvel = self.sim.qvel
         dof_pos = self.sim.qpos[:, self.scene.qpos_adr]
         dof_vel = qvel[:, self.scene.dof_adr]
@@ -459,7 +469,7 @@ class HikingEnv(EnvBase):
         self.history = shifted if advance is None else np.where(advance[:, None, None],
                                                                 shifted, self.history)
 
-        scan_xy = np.stack(np.meshgrid(SCAN_X, SCAN_Y, indexing="ij"), -1).reshape(-1, 2)
+        scan_xy = SCAN_XY
         c, s = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
         world = np.stack([pos[:, 0:1] + c * scan_xy[:, 0] - s * scan_xy[:, 1],
                           pos[:, 1:2] + s * scan_xy[:, 0] + c * scan_xy[:, 1]], -1)
@@ -474,7 +484,9 @@ class HikingEnv(EnvBase):
             category,
         ], axis=1).astype(np.float32)
 
-        ahead = np.stack([self._waypoint_xy(k) for k in range(NUM_EXPERT_GOALS)], axis=1)
+        last = self.trails.count[self.tile] - 1
+        idx = np.minimum(self.waypoint[:, None] + np.arange(NUM_EXPERT_GOALS), last[:, None])
+        ahead = self.trails.waypoints[self.tile[:, None], idx]
         expert = math3d.to_yaw_frame(ahead, pos[:, :2], yaw)
         nf = len(self.robot.feet_bodies)
         sd, sl = self.sim.sensordata, self.scene.sensors
@@ -498,6 +510,8 @@ class HikingEnv(EnvBase):
             "foot_contacts": t(in_contact.sum(axis=1), i64),
             "unsafe_collisions": t((sd[:, :, sl.unsafe_found] > 0).any(axis=1).sum(axis=1), i64),
             "level": t(self.level, i64), "category": t(self.category, i64),
+            "tile": t(self.tile, i64), "waypoint_count": t(self.trails.count[self.tile], i64),
+            "base_pos": t(pos),
             "reward_terms": TensorDict({k: t(parts.get(k, np.zeros(n)))
                                         for k in self.reward_terms}, batch_size=[n]),
         }
