@@ -14,6 +14,7 @@ from omegaconf import MISSING, DictConfig, OmegaConf
 
 from legoh.config.algo import OracleConfig
 from legoh.config.env import EnvConfig
+from legoh.config.eval import EvalConfig
 from legoh.config.robot import CameraConfig, RobotConfig
 from legoh.config.trail import TrailConfig
 
@@ -38,6 +39,7 @@ class Config:
     robot: Any = MISSING
     trail: Any = MISSING
     algo: Any = MISSING
+    eval: Any = MISSING
     sim: SimConfig = field(default_factory=SimConfig)
     env: EnvConfig = field(default_factory=EnvConfig)
     seed: int = 0
@@ -52,6 +54,7 @@ def register_configs() -> None:
     cs.store(group="schema/robot", name="robot", node=RobotConfig)
     cs.store(group="schema/trail", name="trail", node=TrailConfig)
     cs.store(group="schema/algo", name="oracle", node=OracleConfig)
+    cs.store(group="schema/eval", name="eval", node=EvalConfig)
 
 
 def validate(cfg: DictConfig, path: str = "") -> None:

@@ -1,0 +1,17 @@
+"""Benchmark protocol schema (``conf/eval/*.yaml``): how many robots, how long, which scenes."""
+
+from dataclasses import dataclass, field
+
+
+@dataclass
+class EvalConfig:
+    """One evaluation protocol (appendix Table 8: 256 robots, 30 s, 5 levels x 5 variants,
+    5 runs). Each run builds its own terrain and env from seed ``seed + run``."""
+
+    robots: int = 256  # robots per run (spread round-robin over the categories)
+    seconds: float = 30.0  # s, episode length (a robot's first episode counts)
+    categories: list[str] = field(default_factory=list)  # trail categories; empty: the trail's
+    levels: list[int] = field(default_factory=lambda: [0, 1, 2, 3, 4])  # levels evaluated
+    variants: int = 5  # random variants per (category, level) in the evaluation map
+    runs: int = 5  # repetitions, each with its own seed; tables give mean ± std over runs
+    seed: int = 0  # run r uses seed + r for the terrain and the env
