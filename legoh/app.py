@@ -7,10 +7,33 @@ from omegaconf import DictConfig
 
 
 def run(cfg: DictConfig) -> None:
-    """Run the main job in the Hydra run's output folder."""
-    from legoh import stand
-    from legoh.config import validate
+    """Run ``cfg.mode`` in the Hydra run's output folder."""
+    from legoh.config import Mode, validate
 
     validate(cfg)
     out_dir = Path(HydraConfig.get().runtime.output_dir)
-    stand.main(cfg, out_dir)
+    mode = Mode(cfg.mode)
+    if mode == Mode.stand:
+        from legoh import stand
+
+        stand.main(cfg, out_dir)
+    elif mode == Mode.eval:
+        from legoh.eval import cli
+
+        cli.main(cfg, out_dir)
+    else:
+        train_and_evaluate(cfg, out_dir)
+
+
+def train_and_evaluate(cfg: DictConfig, out_dir: Path) -> None:
+    """The main job: train the oracle, benchmark it, print where everything went."""
+    from legoh.eval.benchmark import evaluate
+    from legoh.train.oracle import train_oracle
+
+    run = train_oracle(cfg, out_dir, resume=cfg.resume)
+    result = evaluate(cfg, run.actor, out_dir, label="oracle")
+    print(result["markdown"])
+    print(f"[legoh] checkpoint:   {run.checkpoint}")
+    print(f"[legoh] training log: {run.csv} (CSV), {run.mcap} (MCAP)")
+    for name, path in result["paths"].items():
+        print(f"[legoh] {name}: {path}")

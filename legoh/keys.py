@@ -38,4 +38,5 @@ CATEGORY = ("info", "category")  # int: index of the env's trail category
 TILE = ("info", "tile")  # int: index of the env's tile in the terrain map
 WAYPOINT_COUNT = ("info", "waypoint_count")  # int: expert waypoints on the env's trail
 BASE_POS = ("info", "base_pos")  # (3,) float: base position, world frame, m
+BASE_QUAT = ("info", "base_quat")  # (4,) float: base orientation (w, x, y, z), world frame
 REWARD_TERMS = ("info", "reward_terms")  # sub-dict: one (1,) float per reward term

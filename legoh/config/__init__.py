@@ -7,6 +7,7 @@ composition, naming the key.
 
 import dataclasses
 from dataclasses import dataclass, field
+from enum import Enum
 from typing import Any
 
 from hydra.core.config_store import ConfigStore
@@ -20,6 +21,14 @@ from legoh.config.trail import TrailConfig
 
 __all__ = ["CameraConfig", "Config", "EnvConfig", "OracleConfig", "RobotConfig", "SimConfig",
            "TrailConfig", "register_configs", "validate"]
+
+
+class Mode(Enum):
+    """What ``run.py`` does with the composed config."""
+
+    train = "train"
+    eval = "eval"
+    stand = "stand"
 
 
 @dataclass
@@ -42,9 +51,11 @@ class Config:
     eval: Any = MISSING
     sim: SimConfig = field(default_factory=SimConfig)
     env: EnvConfig = field(default_factory=EnvConfig)
+    mode: Mode = Mode.train  # train (then evaluate), eval (a checkpoint), stand (a picture)
     seed: int = 0
-    device: str = "cpu"  # learner device; MuJoCo always steps on the CPU
-    stand_seconds: float = 3.0  # s the main job holds the default pose before rendering
+    resume: str | None = None  # train: a checkpoint to continue from (a killed run resumes)
+    checkpoint: str | None = None  # eval: the policy to evaluate; none: the untrained one
+    stand_seconds: float = 3.0  # s mode=stand holds the default pose before rendering
 
 
 def register_configs() -> None:

@@ -8,7 +8,7 @@ class OracleConfig:
     """Stage 1: PPO with privileged inputs. Defaults: Extreme Parkour / legged_gym (see docs)."""
 
     name: str = "oracle"
-    num_envs: int = 64
+    num_envs: int = 64  # overrides env.num_envs for training
     steps_per_env: int = 24  # policy steps per env per iteration
     total_frames: int = 200_000  # env steps over the whole run
     lr: float = 2e-4
@@ -19,5 +19,8 @@ class OracleConfig:
     minibatches: int = 4
     gamma: float = 0.99
     gae_lambda: float = 0.95
+    value_coef: float = 1.0  # critic loss weight (rsl_rl)
     max_grad_norm: float = 1.0
-    episode_length_s: float = 20.0  # s, training episodes
+    adaptation_lr: float = 1e-3  # the adaptation module's own optimiser
+    checkpoint_every: int = 20  # iterations between checkpoints (and one at the end)
+    trajectory_every: int = 10  # iterations between trajectories logged to MCAP

@@ -190,6 +190,7 @@ class HikingEnv(EnvBase):
             "tile": Unbounded(shape=(n,), dtype=torch.int64),
             "waypoint_count": Unbounded(shape=(n,), dtype=torch.int64),
             "base_pos": Unbounded(shape=(n, 3), dtype=f32),
+            "base_quat": Unbounded(shape=(n, 4), dtype=f32),
             "reward_terms": Composite({k: Unbounded(shape=(n,), dtype=f32)
                                        for k in self.reward_terms}, shape=(n,)),
         }
@@ -511,7 +512,7 @@ class HikingEnv(EnvBase):
             "unsafe_collisions": t((sd[:, :, sl.unsafe_found] > 0).any(axis=1).sum(axis=1), i64),
             "level": t(self.level, i64), "category": t(self.category, i64),
             "tile": t(self.tile, i64), "waypoint_count": t(self.trails.count[self.tile], i64),
-            "base_pos": t(pos),
+            "base_pos": t(pos), "base_quat": t(self.sim.qpos[:, 3:7]),
             "reward_terms": TensorDict({k: t(parts.get(k, np.zeros(n)))
                                         for k in self.reward_terms}, batch_size=[n]),
         }

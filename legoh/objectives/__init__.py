@@ -1,0 +1,1 @@
+"""Losses and their set-up: PPO (torchrl), the adaptation module's regression."""

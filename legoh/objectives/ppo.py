@@ -1,0 +1,69 @@
+"""PPO from torchrl's parts (GAE, ClipPPOLoss) with rsl_rl's adaptive learning rate.
+
+The update is a plain function so a newcomer can read it top to bottom: epochs x random
+minibatches, the summed ``loss_*`` terms, gradient clipping, and a learning rate that
+follows the KL between the old and new policy. Logged values are means over all minibatches.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+
+import torch
+from tensordict import TensorDictBase
+from torchrl.objectives import ClipPPOLoss
+from torchrl.objectives.value import GAE
+
+from legoh.config.algo import OracleConfig
+
+LR_BOUNDS = (1e-5, 1e-2)  # rsl_rl's clamp for the adaptive learning rate
+
+
+def make_ppo(actor, critic, cfg: OracleConfig) -> tuple[ClipPPOLoss, GAE]:
+    """ClipPPOLoss (advantages normalised per minibatch) and GAE over the critic."""
+    loss = ClipPPOLoss(actor, critic, clip_epsilon=cfg.clip_epsilon, entropy_coeff=cfg.entropy_coef,
+                       critic_coeff=cfg.value_coef, loss_critic_type="smooth_l1",
+                       normalize_advantage=True)
+    loss.set_keys(sample_log_prob="sample_log_prob")
+    gae = GAE(gamma=cfg.gamma, lmbda=cfg.gae_lambda, value_network=critic, average_gae=False)
+    return loss, gae
+
+
+def adapt_learning_rate(lr: float, kl: float, desired_kl: float) -> float:
+    """rsl_rl's rule: shrink the step when the policy moved too far, grow it when too little."""
+    if kl > 2.0 * desired_kl:
+        lr /= 1.5
+    elif 0.0 < kl < desired_kl / 2.0:
+        lr *= 1.5
+    return min(max(lr, LR_BOUNDS[0]), LR_BOUNDS[1])
+
+
+def ppo_update(loss: ClipPPOLoss, optimizer: torch.optim.Optimizer, data: TensorDictBase,
+               cfg: OracleConfig, generator: torch.Generator | None = None) -> dict[str, float]:
+    """Epochs of minibatch updates on a flat batch that already holds GAE advantages."""
+    sums: dict[str, float] = defaultdict(float)
+    count = 0
+    size = data.shape[0] // cfg.minibatches
+    for _ in range(cfg.epochs):
+        order = torch.randperm(data.shape[0], generator=generator)
+        for k in range(cfg.minibatches):
+            batch = data[order[k * size:(k + 1) * size]]
+            out = loss(batch)
+            total = sum(v for key, v in out.items() if key.startswith("loss_"))
+            optimizer.zero_grad()
+            total.backward()
+            grad_norm = torch.nn.utils.clip_grad_norm_(loss.parameters(), cfg.max_grad_norm)
+            optimizer.step()
+            kl = float(out["kl_approx"].detach())
+            if cfg.desired_kl > 0:
+                lr = adapt_learning_rate(optimizer.param_groups[0]["lr"], kl, cfg.desired_kl)
+                for group in optimizer.param_groups:
+                    group["lr"] = lr
+            for key, value in out.items():
+                if value.numel() == 1:
+                    sums[key] += float(value.detach())
+            sums["grad_norm"] += float(grad_norm)
+            count += 1
+    stats = {key: value / count for key, value in sums.items()}
+    stats["lr"] = optimizer.param_groups[0]["lr"]
+    return stats

@@ -1,0 +1,1 @@
+"""Training stages: the oracle (PPO with privileged inputs)."""

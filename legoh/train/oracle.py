@@ -1,0 +1,162 @@
+"""Stage 1: the oracle, trained with PPO on privileged inputs.
+
+Read it top to bottom: build the env and the networks, collect a batch with torchrl's
+Collector, compute advantages with GAE, run the PPO epochs, fit the adaptation module, log,
+checkpoint. A killed run resumes from its last checkpoint with ``resume=PATH``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from omegaconf import DictConfig, OmegaConf
+from tqdm import tqdm
+
+from legoh import keys
+from legoh.checkpoint import load_checkpoint, make_payload, restore_rng, save_checkpoint
+from legoh.envs.hiking_env import HikingEnv, make_env
+from legoh.logs import McapLog, ScalarCSV
+from legoh.modules.actor_critic import OracleInputDims, make_oracle_actor_critic
+from legoh.modules.encoders import make_adaptation_module
+from legoh.objectives.adaptation import adaptation_loss
+from legoh.objectives.ppo import make_ppo, ppo_update
+
+
+@dataclass
+class OracleRun:
+    """What a training run leaves behind."""
+
+    actor: torch.nn.Module
+    checkpoint: Path
+    csv: Path
+    mcap: Path
+    iterations: int
+
+
+def build_oracle(env: HikingEnv, cfg: DictConfig):
+    """Actor, critic and adaptation module sized from the env's specs."""
+    dims = OracleInputDims.from_spec(env.observation_spec)
+    actor, critic = make_oracle_actor_critic(dims, env.num_actions, cfg.env.action_clip)
+    adaptation = make_adaptation_module(dims.proprio, dims.history)
+    return dims, actor, critic, adaptation
+
+
+def batch_scalars(batch) -> dict[str, float]:
+    """Per-iteration means of what the env reported: rewards, each term, levels, outcomes."""
+    nxt = batch["next"]
+    done = nxt["done"].float()
+    stats = {
+        "reward": float(nxt["reward"].mean()),
+        "episode_frames": float(done.numel() / max(done.sum().item(), 1.0)),
+        "level_mean": float(nxt[keys.LEVEL].float().mean()),
+        "reached_frac": float(nxt[keys.REACHED].float().sum() / max(done.sum().item(), 1.0)),
+        "fell_frac": float(nxt[keys.FELL].float().sum() / max(done.sum().item(), 1.0)),
+        "progress": float(nxt[keys.PROGRESS].float().mean()),
+    }
+    for name, value in nxt[keys.REWARD_TERMS].items():
+        stats[f"reward/{name}"] = float(value.mean())
+    return stats
+
+
+def train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None = None) -> OracleRun:
+    """Train the oracle for ``cfg.algo.total_frames`` env steps; returns the trained actor."""
+    algo = cfg.algo
+    out_dir.mkdir(parents=True, exist_ok=True)
+    torch.manual_seed(cfg.seed)
+    gen = torch.Generator().manual_seed(cfg.seed)
+    env = make_env(cfg, num_envs=algo.num_envs)
+    dims, actor, critic, adaptation = build_oracle(env, cfg)
+    loss, gae = make_ppo(actor, critic, algo)
+    optimizer = torch.optim.Adam(loss.parameters(), lr=algo.lr)
+    adapt_optim = torch.optim.Adam(adaptation.parameters(), lr=algo.adaptation_lr)
+    layout = dims.as_layout()
+    models = {"actor": actor, "critic": critic, "adaptation": adaptation}
+    optims = {"ppo": optimizer, "adaptation": adapt_optim}
+
+    start = 0
+    if resume:
+        state = load_checkpoint(resume, expect_robot=cfg.robot.name, expect_layout=layout)
+        for name, module in models.items():
+            module.load_state_dict(state["models"][name])
+        for name, opt in optims.items():
+            opt.load_state_dict(state["optimizers"][name])
+        start = int(state["iteration"])
+        env.level[:] = np.asarray(state["curriculum"]["level"])
+        env.global_steps = int(state["curriculum"]["global_steps"])
+        restore_rng(state["rng"])
+        print(f"[legoh] resumed from {resume} at iteration {start}")
+
+    frames_per_batch = algo.num_envs * algo.steps_per_env
+    iterations = max(1, algo.total_frames // frames_per_batch)
+    from torchrl.collectors import Collector
+
+    collector = Collector(env, actor, frames_per_batch=frames_per_batch,
+                          total_frames=(iterations - start) * frames_per_batch,
+                          auto_register_policy_transforms=False)  # the actor is stateless
+    csv = ScalarCSV(out_dir / "train.csv", resume=bool(resume))
+    mcap = McapLog(out_dir, stem="train")
+    ckpt_path = out_dir / "oracle.pt"
+    resolved = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
+
+    def checkpoint(iteration: int) -> None:
+        payload = make_payload(
+            models=models, optimizers=optims, iteration=iteration, robot=cfg.robot.name,
+            layout=layout, config=resolved,
+            curriculum={"level": env.level.tolist(), "global_steps": env.global_steps})
+        save_checkpoint(ckpt_path, payload)
+
+    bar = tqdm(total=iterations, initial=start, desc="oracle PPO", unit="it")
+    it = start
+    tick = time.perf_counter()
+    for batch in collector:
+        with torch.no_grad():
+            gae(batch)
+        stats = ppo_update(loss, optimizer, batch.reshape(-1), algo, gen)
+        adapt = adaptation_loss(adaptation, actor, batch.reshape(-1))
+        adapt_optim.zero_grad()
+        adapt.backward()
+        adapt_optim.step()
+        stats["loss_adaptation"] = float(adapt.detach())
+        stats.update(batch_scalars(batch))
+        now = time.perf_counter()
+        stats["frames_per_s"] = frames_per_batch / (now - tick)
+        tick = now
+        it += 1
+        csv.write(it, stats)
+        mcap.log_scalars(it, stats)
+        if it % algo.trajectory_every == 0 or it == iterations:
+            log_trajectory(mcap, it, batch, env.dt)
+        if it % algo.checkpoint_every == 0 or it == iterations:
+            checkpoint(it)
+        bar.update(1)
+        bar.set_postfix(fps=f"{stats['frames_per_s']:.0f}", reward=f"{stats['reward']:.3f}",
+                        ep_len=f"{stats['episode_frames'] * env.dt:.1f}s",
+                        level=f"{stats['level_mean']:.2f}")
+    bar.close()
+    collector.shutdown()
+    csv.close()
+    mcap.close()
+    if it == start:  # nothing left to train: still leave a checkpoint behind
+        checkpoint(it)
+    return OracleRun(actor=actor, checkpoint=ckpt_path, csv=csv.path, mcap=mcap.path,
+                     iterations=it)
+
+
+def log_trajectory(mcap: McapLog, iteration: int, batch, dt: float, env_index: int = 0) -> None:
+    """Record one robot's path through the batch (base pose, joints, goals) to MCAP."""
+    nxt = batch["next"][env_index]
+    proprio = nxt[keys.PROPRIO]
+    num_actions = batch["action"].shape[-1]
+    mcap.log_trajectory(
+        iteration,
+        base_pos=nxt[keys.BASE_POS].numpy(),
+        base_quat=nxt[keys.BASE_QUAT].numpy(),
+        joint_pos=proprio[:, 6:6 + num_actions].numpy(),  # relative to the default pose
+        goals=nxt[keys.EXPERT_GOALS].numpy(),
+        dt=dt,
+        env=env_index,
+    )
