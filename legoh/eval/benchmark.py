@@ -1,0 +1,228 @@
+"""The benchmark protocol (``conf/eval``): robots on fixed levels, the paper's tables.
+
+For each run r (terrain and env seeded with ``eval.seed + r``) an evaluation env is built
+once: ``eval.robots`` robots spread round-robin over the trail's categories, the terminus
+reach radius of evaluation (0.89 m), episodes of ``eval.seconds``, curriculum off. For each
+level in ``eval.levels`` every robot is put on that level (a random one of ``eval.variants``
+variants each) and the deterministic policy runs until every robot has ended its first
+episode (reach, fall or timeout; only the first episode counts, ``docs/metrics.md``), at
+most ``seconds / dt`` steps. A run's metrics pool the robots of all its levels, per
+category and overall; tables give mean ± std over runs.
+
+Files written to ``out_dir`` per evaluation: ``benchmark.md`` (per category and overall,
+then per level), ``benchmark.csv`` (per category and overall) and ``trajectories.png``
+(first run, hardest level, one panel per category).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+import torch
+from omegaconf import DictConfig, OmegaConf
+from torchrl.envs.utils import ExplorationType, set_exploration_type
+from tqdm import tqdm
+
+from legoh import keys
+from legoh.eval.metrics import (
+    SIGNALS,
+    RobotOutcomes,
+    aggregate,
+    robot_outcomes,
+    summarize,
+    to_markdown,
+    write_csv,
+)
+from legoh.eval.plots import outcome_labels, plot_trajectories
+
+OVERALL = "overall"
+
+
+@dataclasses.dataclass(frozen=True)
+class LevelRecord:
+    """All robots' first episodes on one level of one run."""
+
+    level: int
+    outcomes: RobotOutcomes  # per robot, (N,) each
+    category: np.ndarray  # (N,) category names
+    tile: np.ndarray  # (N,) tile index of each robot's first episode
+    paths: list[np.ndarray]  # N arrays (T_n, 3): torso path, start first, world frame, m
+    steps: int  # policy steps simulated
+
+
+def run_config(cfg: DictConfig, run: int) -> DictConfig:
+    """The config of run ``run``: seed ``eval.seed + run``, the eval's variants and
+    categories in the trail. Levels must exist in the trail (they set the difficulty)."""
+    ev = cfg.eval
+    bad = [lv for lv in ev.levels if not 0 <= lv < cfg.trail.levels]
+    if bad:
+        raise ValueError(f"eval.levels {list(ev.levels)}: {bad} not in the trail's levels "
+                         f"0..{cfg.trail.levels - 1} (set trail.levels)")
+    trail = {"variants": ev.variants}
+    if ev.categories:
+        trail["categories"] = list(ev.categories)
+    return OmegaConf.merge(cfg, {"seed": ev.seed + run, "trail": trail})
+
+
+def make_eval_env(cfg: DictConfig, run: int = 0):
+    """The evaluation env of run ``run`` (curriculum off, evaluation reach radius)."""
+    from legoh.envs.hiking_env import make_env
+
+    ev = cfg.eval
+    curriculum = dataclasses.replace(OmegaConf.to_object(cfg.env.curriculum), enabled=False)
+    return make_env(run_config(cfg, run), num_envs=ev.robots, evaluation=True,
+                    episode_length_s=float(ev.seconds), curriculum=curriculum)
+
+
+@contextmanager
+def torch_threads(n: int) -> Iterator[None]:
+    """Run torch ops on ``n`` threads inside the block. A small MLP on a few hundred rows
+    runs ~20x slower on 2 threads than on 1 when the cores are busy (physics, other jobs)."""
+    old = torch.get_num_threads()
+    torch.set_num_threads(n)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(old)
+
+
+def rollout_level(env, actor, level: int) -> LevelRecord:
+    """Every robot on ``level``; step the deterministic ``actor`` until each robot has ended
+    its first episode (at most the env's ``max_steps``, where it is truncated)."""
+    n = env.num_envs
+    env.level[:] = level
+    td = env.reset()
+    start = td[keys.BASE_POS].numpy().copy()
+    tile = td[keys.TILE].numpy().copy()
+    count = td[keys.WAYPOINT_COUNT].numpy().copy()
+    signals = {s: [] for s in (*SIGNALS, "done")}
+    pos = []
+    ended = np.zeros(n, dtype=bool)
+    with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
+        for _ in range(env.max_steps):
+            td, root = env.step_and_maybe_reset(actor(td))
+            nxt = td["next"]
+            for s in SIGNALS:
+                signals[s].append(nxt[keys.INFO, s].numpy().copy())
+            done = nxt[keys.DONE].reshape(n).numpy().copy()
+            signals["done"].append(done)
+            pos.append(nxt[keys.BASE_POS].numpy().copy())
+            ended |= done
+            if ended.all():
+                break
+            td = root
+    arr = {k: np.stack(v) for k, v in signals.items()}  # (T, N)
+    out = robot_outcomes(waypoint_count=count, dt=env.dt, **arr)
+    t_len = len(pos)
+    last = np.where(arr["done"].any(axis=0), arr["done"].argmax(axis=0), t_len - 1)
+    track = np.concatenate([start[None], np.stack(pos)])  # (T + 1, N, 3)
+    paths = [track[: last[i] + 2, i] for i in range(n)]
+    names = np.asarray(env.terrain.categories)[env.category]
+    return LevelRecord(level=level, outcomes=out, category=names, tile=tile, paths=paths,
+                       steps=t_len)
+
+
+def _concat(outs: list[RobotOutcomes]) -> RobotOutcomes:
+    return RobotOutcomes(**{f.name: np.concatenate([getattr(o, f.name) for o in outs])
+                            for f in dataclasses.fields(RobotOutcomes)})
+
+
+def run_metrics(records: list[LevelRecord]) -> dict[str, dict[str, float]]:
+    """One run's metrics, robots of all levels pooled: per category, ``"overall"``, and
+    per level (``"level <l>"``)."""
+    out = _concat([r.outcomes for r in records])
+    cats = np.concatenate([r.category for r in records])
+    levels = np.concatenate([np.full(len(r.category), r.level) for r in records])
+    rows = {str(c): aggregate(out, cats == c) for c in dict.fromkeys(cats.tolist())}
+    rows[OVERALL] = aggregate(out)
+    rows.update({f"level {lv}": aggregate(out, levels == lv) for lv in
+                 dict.fromkeys(levels.tolist())})
+    return rows
+
+
+def plot_run(env, records: list[LevelRecord], path: Path, title: str) -> Path:
+    """Trajectories of the hardest evaluated level: per category, the robots on its most
+    used tile."""
+    rec = max(records, key=lambda r: r.level)
+    labels = outcome_labels(rec.outcomes.success, rec.outcomes.fall)
+    keep = np.zeros(len(rec.tile), dtype=bool)
+    for c in dict.fromkeys(rec.category.tolist()):
+        tiles, counts = np.unique(rec.tile[rec.category == c], return_counts=True)
+        keep |= (rec.category == c) & (rec.tile == tiles[counts.argmax()])
+    ids = np.flatnonzero(keep)
+    return plot_trajectories(env.terrain, rec.tile[ids], [rec.paths[i] for i in ids],
+                             labels[ids], path, title=title)
+
+
+def evaluate(cfg: DictConfig, actor, out_dir: str | Path, label: str = "policy",
+             progress: bool = True) -> dict:
+    """Run the protocol ``cfg.eval`` with ``actor`` (a TensorDict policy writing
+    ``"action"``; its deterministic mode is used) and write the tables and picture.
+
+    Returns:
+        ``{"label", "rows": {category..., "overall": {metric: (mean, std)}},
+        "levels": {"level <l>": ...}, "runs": [per-run rows], "paths": {"markdown",
+        "csv", "trajectories"}, "wall_s", "steps"}``.
+    """
+    ev = cfg.eval
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = {"trajectories": out_dir / "trajectories.png"}
+    runs, steps, t0 = [], 0, time.perf_counter()
+    bar = tqdm(total=ev.runs * len(ev.levels), desc=f"eval {label}", disable=not progress)
+    was_training = getattr(actor, "training", False)
+    if was_training:
+        actor.eval()
+    try:
+        with torch_threads(1):
+            for r in range(ev.runs):
+                env = make_eval_env(cfg, r)
+                try:
+                    records = []
+                    for level in ev.levels:
+                        bar.set_postfix(run=r, level=level)
+                        records.append(rollout_level(env, actor, int(level)))
+                        steps += records[-1].steps
+                        bar.update()
+                    runs.append(run_metrics(records))
+                    if r == 0:
+                        plot_run(env, records, paths["trajectories"],
+                                 f"{label}: {cfg.trail.name}, run 0")
+                finally:
+                    env.close()
+    finally:
+        bar.close()
+        if was_training:
+            actor.train()
+    names = list(runs[0])
+    is_level = [k.startswith("level ") for k in names]
+    summary = {k: summarize([run[k] for run in runs]) for k in names}
+    rows = {k: summary[k] for k, lv in zip(names, is_level, strict=True) if not lv}
+    levels = {k: summary[k] for k, lv in zip(names, is_level, strict=True) if lv}
+    title = (f"{label} on {cfg.trail.name} ({cfg.robot.name}): {ev.robots} robots x "
+             f"{ev.seconds:g} s, levels {list(ev.levels)} x {ev.variants} variants, "
+             f"{ev.runs} run(s), mean ± std over runs")
+    paths["markdown"] = out_dir / "benchmark.md"
+    paths["markdown"].write_text(to_markdown(rows, "Category", title) + "\n"
+                                 + to_markdown(levels, "Level", "Per level"), encoding="utf-8")
+    paths["csv"] = write_csv(out_dir / "benchmark.csv", rows, label="category")
+    return {"label": label, "rows": rows, "levels": levels, "runs": runs, "paths": paths,
+            "wall_s": time.perf_counter() - t0, "steps": steps}
+
+
+def compare(results: Mapping[str, dict], row: str = OVERALL
+            ) -> dict[str, dict[str, tuple[float, float]]]:
+    """Rows of a methods table: ``{label: summary of row}`` (``row``: ``"overall"``, a
+    category name or ``"level <l>"``), for :func:`legoh.eval.metrics.to_markdown`."""
+    table = {}
+    for label, result in results.items():
+        merged = {**result["rows"], **result.get("levels", {})}
+        if row not in merged:
+            raise KeyError(f"{label!r} has no row {row!r}; it has {sorted(merged)}")
+        table[label] = merged[row]
+    return table

@@ -1,0 +1,45 @@
+"""``mode=eval``: evaluate a checkpoint's actor (or an untrained one) with ``cfg.eval``."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+from omegaconf import DictConfig, OmegaConf
+
+from legoh.checkpoint import load_checkpoint
+from legoh.eval.benchmark import evaluate, make_eval_env
+from legoh.modules.actor_critic import OracleInputDims, make_oracle_actor_critic
+
+
+def build_actor(cfg: DictConfig, checkpoint: str | None = None):
+    """The oracle actor sized from the evaluation env's specs, with the weights of
+    ``checkpoint`` (its robot and observation layout must match this config)."""
+    env = make_eval_env(OmegaConf.merge(cfg, {"eval": {"robots": 1}}))
+    try:
+        dims = OracleInputDims.from_spec(env.observation_spec)
+        actor, _ = make_oracle_actor_critic(dims, env.num_actions, cfg.env.action_clip)
+    finally:
+        env.close()
+    if checkpoint:
+        payload = load_checkpoint(checkpoint, expect_robot=cfg.robot.name,
+                                  expect_layout=dims.as_layout())
+        actor.load_state_dict(payload["models"]["actor"])
+    return actor
+
+
+def main(cfg: DictConfig, out_dir: str | Path) -> dict:
+    """Evaluate ``cfg.checkpoint``'s actor (when that key is set) with the protocol
+    ``cfg.eval``; writes benchmark.md / benchmark.csv / trajectories.png to ``out_dir``."""
+    checkpoint = OmegaConf.select(cfg, "checkpoint", default=None)
+    if not checkpoint:
+        warnings.warn("no checkpoint given (checkpoint=<path>): evaluating an untrained actor",
+                      stacklevel=2)
+        print("[legoh] WARNING: no checkpoint given, evaluating an untrained actor")
+    actor = build_actor(cfg, checkpoint)
+    label = Path(checkpoint).stem if checkpoint else "untrained"
+    result = evaluate(cfg, actor, out_dir, label=label)
+    print(Path(result["paths"]["markdown"]).read_text(encoding="utf-8"))
+    print(f"[legoh] evaluation written to {Path(out_dir).resolve()} "
+          f"({result['wall_s']:.0f} s, {result['steps']} policy steps)")
+    return result

@@ -1,0 +1,120 @@
+"""Benchmark protocol: the eval config group, a tiny evaluation end to end, its files."""
+
+import copy
+import csv
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from hydra.errors import ConfigCompositionException
+
+from legoh.checkpoint import CheckpointError, make_payload, save_checkpoint
+from legoh.eval.benchmark import OVERALL, compare, evaluate, make_eval_env, run_config
+from legoh.eval.cli import build_actor, main
+from legoh.eval.metrics import METRICS, column_title
+from legoh.eval.plots import plot_trajectories
+from legoh.modules.actor_critic import OracleInputDims
+from tests.conftest import compose_config
+
+TINY = ("trail=flat", "trail.levels=1", "trail.variants=1", "eval.robots=2", "eval.seconds=1",
+        "eval.levels=[0]", "eval.variants=1", "eval.runs=1")
+
+
+def test_default_protocol_is_quick() -> None:
+    ev = compose_config().eval
+    assert ev.seconds == 30.0 and ev.runs >= 2 and list(ev.levels) == [0, 1, 2]
+
+
+def test_table8_is_the_papers_protocol() -> None:
+    ev = compose_config("eval=table8").eval
+    assert (ev.robots, ev.seconds, list(ev.levels), ev.variants, ev.runs) == (
+        256, 30.0, [0, 1, 2, 3, 4], 5, 5)
+    assert list(ev.categories) == []
+
+
+def test_mistyped_eval_key_is_named() -> None:
+    with pytest.raises(ConfigCompositionException, match="robtos"):
+        compose_config("eval.robtos=3")
+
+
+def test_run_config_seeds_runs_and_checks_levels() -> None:
+    cfg = compose_config(*TINY, "eval.seed=7", "eval.variants=3")
+    run = run_config(cfg, 2)
+    assert run.seed == 9 and run.trail.variants == 3 and list(run.trail.categories) == ["flat"]
+    with pytest.raises(ValueError, match="eval.levels"):
+        run_config(compose_config(*TINY, "eval.levels=[0,1]"), 0)
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory: pytest.TempPathFactory) -> tuple:
+    cfg = compose_config(*TINY)
+    actor = build_actor(cfg)
+    out = tmp_path_factory.mktemp("eval")
+    return cfg, actor, evaluate(cfg, actor, out, label="untrained", progress=False)
+
+
+def test_evaluation_writes_the_tables_and_picture(tiny: tuple) -> None:
+    _, _, result = tiny
+    paths = result["paths"]
+    assert {p.name for p in paths.values()} == {"benchmark.md", "benchmark.csv",
+                                                "trajectories.png"}
+    with open(paths["csv"], encoding="utf-8", newline="") as f:
+        table = list(csv.reader(f))
+    assert table[0] == ["category"] + [f"{column_title(m)} {s}" for m in METRICS
+                                       for s in ("mean", "std")]
+    assert [row[0] for row in table[1:]] == ["flat", OVERALL]
+    md = paths["markdown"].read_text(encoding="utf-8")
+    assert "| flat |" in md and "| overall |" in md and "| level 0 |" in md
+    assert paths["trajectories"].read_bytes()[:4] == b"\x89PNG"
+
+
+def test_evaluation_results_are_per_category_and_bounded(tiny: tuple) -> None:
+    _, _, result = tiny
+    assert list(result["rows"]) == ["flat", OVERALL] and list(result["levels"]) == ["level 0"]
+    overall = result["rows"][OVERALL]
+    assert set(overall) == set(METRICS)
+    assert 0.0 < overall["TTF"][0] <= 1.0 + 1e-9  # episodes last at most eval.seconds
+    assert 0.0 <= overall["SR"][0] <= 100.0 and overall["SR"][1] == 0.0  # one run: std 0
+    assert 0 < result["steps"] <= 50  # 1 s at 50 Hz, stopped once every robot is done
+
+
+def test_compare_puts_policies_side_by_side(tiny: tuple) -> None:
+    _, _, result = tiny
+    rows = compare({"trained": result, "untrained": result})
+    assert list(rows) == ["trained", "untrained"]
+    assert rows["trained"] == result["rows"][OVERALL]
+    assert compare({"a": result}, row="level 0")["a"] == result["levels"]["level 0"]
+    with pytest.raises(KeyError, match="ditch"):
+        compare({"a": result}, row="ditch")
+
+
+def test_cli_loads_the_checkpoint_actor(tiny: tuple, tmp_path: Path) -> None:
+    cfg, actor, _ = tiny
+    actor = copy.deepcopy(actor)
+    with torch.no_grad():
+        for p in actor.parameters():
+            p.add_(0.5)
+    env = make_eval_env(cfg)
+    layout = OracleInputDims.from_spec(env.observation_spec).as_layout()
+    env.close()
+    path = save_checkpoint(tmp_path / "oracle.pt", make_payload(
+        models={"actor": actor}, iteration=1, robot=cfg.robot.name, layout=layout))
+    loaded = build_actor(cfg, str(path))
+    for a, b in zip(actor.state_dict().values(), loaded.state_dict().values(), strict=True):
+        assert torch.equal(a, b)
+    with pytest.raises(CheckpointError, match="robot"):
+        build_actor(compose_config(*TINY, "robot=g1"), str(path))
+
+
+def test_cli_without_checkpoint_warns_and_evaluates(tmp_path: Path) -> None:
+    with pytest.warns(UserWarning, match="untrained"):
+        result = main(compose_config(*TINY), tmp_path)
+    assert result["label"] == "untrained" and (tmp_path / "benchmark.csv").exists()
+
+
+def test_plot_refuses_mismatched_inputs(tiny: tuple, tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="one entry per robot"):
+        plot_trajectories(None, [0, 0], [np.zeros((3, 3))], ["fell"], tmp_path / "x.png")
+    with pytest.raises(ValueError, match="unknown outcome"):
+        plot_trajectories(None, [0], [np.zeros((3, 3))], ["won"], tmp_path / "x.png")
