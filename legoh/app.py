@@ -28,12 +28,15 @@ def run(cfg: DictConfig) -> None:
 def train_and_evaluate(cfg: DictConfig, out_dir: Path) -> None:
     """The main job: train the oracle, benchmark it, print where everything went."""
     from legoh.eval.benchmark import evaluate
+    from legoh.eval.curves import plot_learning_curve
     from legoh.train.oracle import train_oracle
 
     run = train_oracle(cfg, out_dir, resume=cfg.resume)
     result = evaluate(cfg, run.actor, out_dir, label="oracle")
-    print(result["markdown"])
-    print(f"[legoh] checkpoint:   {run.checkpoint}")
-    print(f"[legoh] training log: {run.csv} (CSV), {run.mcap} (MCAP)")
+    print(Path(result["paths"]["markdown"]).read_text())
+    print(f"[legoh] checkpoint:        {run.checkpoint}")
+    print(f"[legoh] training log:      {run.csv} (CSV), {run.mcap} (MCAP)")
+    curve = plot_learning_curve(run.csv, out_dir / "learning_curve.png")
+    print(f"[legoh] learning curve:    {curve}")
     for name, path in result["paths"].items():
-        print(f"[legoh] {name}: {path}")
+        print(f"[legoh] benchmark {name + ':':13s} {path}")

@@ -53,8 +53,9 @@ class HikingGymEnv(gym.Env):
         return {k: td["obs", k][0].numpy().copy() for k in self.obs_keys}
 
     def _info(self, td: TensorDictBase) -> dict[str, Any]:
-        info = {k: td[keys.INFO, k][0].item() for k in td[keys.INFO].keys()
-                if k != keys.REWARD_TERMS[1]}
+        values = {k: td[keys.INFO, k][0] for k in td[keys.INFO].keys()
+                  if k != "reward_terms"}
+        info = {k: v.item() if v.numel() == 1 else v.numpy().copy() for k, v in values.items()}
         info["reward_terms"] = {k: v[0].item() for k, v in td[keys.REWARD_TERMS].items()}
         info["expert_goals"] = td[keys.EXPERT_GOALS][0].numpy().copy()
         return info

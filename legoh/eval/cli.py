@@ -9,7 +9,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from legoh.checkpoint import load_checkpoint
 from legoh.eval.benchmark import evaluate, make_eval_env
-from legoh.modules.actor_critic import OracleInputDims, make_oracle_actor_critic
+from legoh.train.oracle import build_oracle
 
 
 def build_actor(cfg: DictConfig, checkpoint: str | None = None):
@@ -17,8 +17,7 @@ def build_actor(cfg: DictConfig, checkpoint: str | None = None):
     ``checkpoint`` (its robot and observation layout must match this config)."""
     env = make_eval_env(OmegaConf.merge(cfg, {"eval": {"robots": 1}}))
     try:
-        dims = OracleInputDims.from_spec(env.observation_spec)
-        actor, _ = make_oracle_actor_critic(dims, env.num_actions, cfg.env.action_clip)
+        dims, actor, _, _ = build_oracle(env, cfg)
     finally:
         env.close()
     if checkpoint:

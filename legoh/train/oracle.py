@@ -20,7 +20,11 @@ from legoh import keys
 from legoh.checkpoint import load_checkpoint, make_payload, restore_rng, save_checkpoint
 from legoh.envs.hiking_env import HikingEnv, make_env
 from legoh.logs import McapLog, ScalarCSV
-from legoh.modules.actor_critic import OracleInputDims, make_oracle_actor_critic
+from legoh.modules.actor_critic import (
+    OracleInputDims,
+    OracleNetConfig,
+    make_oracle_actor_critic,
+)
 from legoh.modules.encoders import make_adaptation_module
 from legoh.objectives.adaptation import adaptation_loss
 from legoh.objectives.ppo import make_ppo, ppo_update
@@ -40,7 +44,8 @@ class OracleRun:
 def build_oracle(env: HikingEnv, cfg: DictConfig):
     """Actor, critic and adaptation module sized from the env's specs."""
     dims = OracleInputDims.from_spec(env.observation_spec)
-    actor, critic = make_oracle_actor_critic(dims, env.num_actions, cfg.env.action_clip)
+    net = OracleNetConfig(init_std=cfg.algo.init_noise_std)
+    actor, critic = make_oracle_actor_critic(dims, env.num_actions, cfg.env.action_clip, net)
     adaptation = make_adaptation_module(dims.proprio, dims.history)
     return dims, actor, critic, adaptation
 
