@@ -32,6 +32,7 @@ from legoh.envs.rewards import StepState, active_terms, compute_rewards
 from legoh.envs.scene import Scene, build_scene
 from legoh.envs.sensors import DepthRaycaster
 from legoh.envs.terrain import TerrainMap, build_terrain_map
+from legoh.envs.terrain.terrain_map import bilinear
 
 # Scandots: Extreme Parkour's 12 x 11 grid in the robot's yaw frame.
 SCAN_X = np.linspace(-0.45, 1.2, 12)
@@ -474,7 +475,7 @@ class HikingEnv(EnvBase):
         c, s = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
         world = np.stack([pos[:, 0:1] + c * scan_xy[:, 0] - s * scan_xy[:, 1],
                           pos[:, 1:2] + s * scan_xy[:, 0] + c * scan_xy[:, 1]], -1)
-        heights = _bilinear(self.scene.scan_heights, self.terrain.origin,
+        heights = bilinear(self.scene.scan_heights, self.terrain.origin,
                             self.terrain.resolution, world)
         scandots = np.clip(pos[:, 2:3] - self.robot.nominal_base_height - heights, -1.0, 1.0)
 
@@ -524,17 +525,6 @@ class HikingEnv(EnvBase):
         """Stop the physics thread pool."""
         self.sim.close()
         super().close(**kwargs)
-
-
-def _bilinear(grid: np.ndarray, origin: np.ndarray, res: float, xy: np.ndarray) -> np.ndarray:
-    """Bilinear lookup of a (nx, ny) grid at world points (..., 2), clamped at the edges."""
-    nx, ny = grid.shape
-    u = np.clip((xy[..., 0] - origin[0]) / res, 0.0, nx - 1.000001)
-    v = np.clip((xy[..., 1] - origin[1]) / res, 0.0, ny - 1.000001)
-    i, j = u.astype(np.int64), v.astype(np.int64)
-    fu, fv = u - i, v - j
-    return ((1 - fu) * (1 - fv) * grid[i, j] + fu * (1 - fv) * grid[i + 1, j]
-            + (1 - fu) * fv * grid[i, j + 1] + fu * fv * grid[i + 1, j + 1])
 
 
 def make_env(cfg, num_envs: int | None = None, evaluation: bool = False, **overrides

@@ -21,6 +21,19 @@ BOX_SINK = 0.05  # m boxes reach below the ground at their centre (no floating o
 TRUNK_SINK = 0.2  # m trunks reach below the ground at their centre
 
 
+def bilinear(grid: np.ndarray, origin: np.ndarray, res: float, xy: np.ndarray) -> np.ndarray:
+    """Bilinear lookup of a (nx, ny) grid (cell [i, j] at origin + (i, j) * res) at world
+    points ``xy`` (..., 2), clamped at the edges."""
+    xy = np.asarray(xy, dtype=np.float64)
+    nx, ny = grid.shape
+    u = np.clip((xy[..., 0] - origin[0]) / res, 0.0, nx - 1.000001)
+    v = np.clip((xy[..., 1] - origin[1]) / res, 0.0, ny - 1.000001)
+    i, j = u.astype(np.int64), v.astype(np.int64)
+    fu, fv = u - i, v - j
+    return ((1 - fu) * (1 - fv) * grid[i, j] + fu * (1 - fv) * grid[i + 1, j]
+            + (1 - fu) * fv * grid[i, j + 1] + fu * fv * grid[i + 1, j + 1])
+
+
 @dataclass
 class Tile:
     """One trail tile, world frame (m, rad); the trail runs along +x."""
@@ -59,15 +72,7 @@ class TerrainMap:
     def height_at(self, xy: np.ndarray) -> np.ndarray:
         """Bilinear ground height (m) at world points ``xy`` (..., 2); clamped at the map
         edge. Vectorised: no Python loop over points."""
-        xy = np.asarray(xy, dtype=np.float64)
-        nx, ny = self.heights.shape
-        u = np.clip((xy[..., 0] - self.origin[0]) / self.resolution, 0.0, nx - 1.000001)
-        v = np.clip((xy[..., 1] - self.origin[1]) / self.resolution, 0.0, ny - 1.000001)
-        i, j = u.astype(np.int64), v.astype(np.int64)
-        fu, fv = u - i, v - j
-        h = self.heights
-        return ((1 - fu) * (1 - fv) * h[i, j] + fu * (1 - fv) * h[i + 1, j]
-                + (1 - fu) * fv * h[i, j + 1] + fu * fv * h[i + 1, j + 1])
+        return bilinear(self.heights, self.origin, self.resolution, xy)
 
     def tile_index(self, category: str, level: int, variant: int) -> int:
         """Index into ``tiles``; raises ValueError naming the valid range."""
