@@ -85,6 +85,10 @@ class EnvConfig:
     spawn_noise: float = 0.3  # m, xy jitter of the spawn point
     divergence_qvel: float = 1.0e3  # |qvel| above this counts as a diverged simulation
     rewards: dict[str, float] = field(default_factory=table6_weights)
+    # legged_gym's default: clip the step's total at 0, so that ending an episode early (a
+    # fall) is never a way to escape the penalties. Without it, our first 2M-frame study
+    # learned to dive toward the goal and fall sooner than the untrained policy.
+    only_positive_rewards: bool = True
     air_time_target: float = 0.5  # s, Table 6 feet air time
     depth: DepthConfig = field(default_factory=DepthConfig)
     randomization: RandomizationConfig = field(default_factory=RandomizationConfig)

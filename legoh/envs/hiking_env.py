@@ -294,6 +294,8 @@ class HikingEnv(EnvBase):
         self._update_base()
         state = self._step_state(action)
         reward, parts = compute_rewards(state, self.reward_terms)
+        if self.cfg.only_positive_rewards:
+            reward = np.maximum(reward, 0.0)
         self._last_parts = parts
         reached = self._reached()
         fell = self._fell(state) & ~diverged
