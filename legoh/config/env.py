@@ -89,6 +89,10 @@ class EnvConfig:
     # fall) is never a way to escape the penalties. Without it, our first 2M-frame study
     # learned to dive toward the goal and fall sooner than the untrained policy.
     only_positive_rewards: bool = True
+    # legged_gym's "termination" term (its biped, Cassie, uses -200), added after the clip
+    # and scaled by dt like every term: a fall costs 4 at 50 Hz. Not in Table 6; without it
+    # the study's oracle learned to dive toward the goal (docs/env.md).
+    termination_penalty: float = -200.0
     air_time_target: float = 0.5  # s, Table 6 feet air time
     depth: DepthConfig = field(default_factory=DepthConfig)
     randomization: RandomizationConfig = field(default_factory=RandomizationConfig)

@@ -301,6 +301,7 @@ class HikingEnv(EnvBase):
         fell = self._fell(state) & ~diverged
         timeout = self.steps >= self.max_steps
         terminated = (reached | fell) & ~diverged
+        reward = reward + self.cfg.termination_penalty * self.dt * (fell & ~reached)
         truncated = (timeout | diverged) & ~terminated
 
         self.last_action = action
