@@ -9,6 +9,7 @@ class OracleConfig:
 
     name: str = "oracle"
     num_envs: int = 64  # overrides env.num_envs for training
+    workers: int = 1  # collector processes (MultiSyncCollector above 1), num_envs split evenly
     steps_per_env: int = 24  # policy steps per env per iteration
     total_frames: int = 500_000  # env steps over the whole run: ~7 min on a 2-core CPU
     lr: float = 2e-4

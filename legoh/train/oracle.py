@@ -7,6 +7,7 @@ checkpoint. A killed run resumes from its last checkpoint with ``resume=PATH``.
 
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -97,11 +98,8 @@ def train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None = None) -> O
 
     frames_per_batch = algo.num_envs * algo.steps_per_env
     iterations = max(1, algo.total_frames // frames_per_batch)
-    from torchrl.collectors import Collector
-
-    collector = Collector(env, actor, frames_per_batch=frames_per_batch,
-                          total_frames=(iterations - start) * frames_per_batch,
-                          auto_register_policy_transforms=False)  # the actor is stateless
+    collector = make_collector(cfg, env, actor, frames_per_batch,
+                               (iterations - start) * frames_per_batch)
     csv = ScalarCSV(out_dir / "train.csv", resume=bool(resume))
     mcap = McapLog(out_dir, stem="train")
     ckpt_path = out_dir / "oracle.pt"
@@ -118,6 +116,7 @@ def train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None = None) -> O
     it = start
     tick = time.perf_counter()
     for batch in collector:
+        batch = batch.reshape(-1, batch.shape[-1])  # (envs, time), whatever the collector
         with torch.no_grad():
             gae(batch)
         stats = ppo_update(loss, optimizer, batch.reshape(-1), algo, gen)
@@ -149,6 +148,30 @@ def train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None = None) -> O
         checkpoint(it)
     return OracleRun(actor=actor, checkpoint=ckpt_path, csv=csv.path, mcap=mcap.path,
                      iterations=it)
+
+
+def make_collector(cfg: DictConfig, env: HikingEnv, actor, frames_per_batch: int,
+                   total_frames: int):
+    """torchrl's Collector on ``env``; with ``algo.workers`` > 1, a MultiSyncCollector over
+    that many processes, each stepping ``num_envs / workers`` envs of its own (seeded apart).
+    The curriculum then lives in the workers, so ``resume`` restores it only for one worker.
+    """
+    from torchrl.collectors import Collector, MultiSyncCollector
+
+    workers = cfg.algo.workers
+    if workers <= 1:
+        return Collector(env, actor, frames_per_batch=frames_per_batch,
+                         total_frames=total_frames,
+                         auto_register_policy_transforms=False)  # the actor is stateless
+    if cfg.algo.num_envs % workers:
+        raise ValueError(f"algo.num_envs={cfg.algo.num_envs} is not divisible by "
+                         f"algo.workers={workers}")
+    factory = functools.partial(make_env, cfg, num_envs=cfg.algo.num_envs // workers)
+    collector = MultiSyncCollector([factory] * workers, actor,
+                                   frames_per_batch=frames_per_batch, total_frames=total_frames,
+                                   auto_register_policy_transforms=False)
+    collector.set_seed(cfg.seed)
+    return collector
 
 
 def log_trajectory(mcap: McapLog, iteration: int, batch, dt: float, env_index: int = 0) -> None:
