@@ -54,14 +54,18 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=2_000_000)
     parser.add_argument("--trail", default="flat")
     parser.add_argument("--robot", default="h1")
+    parser.add_argument("--resume", action="store_true",
+                        help="continue the last study's training up to --frames, then re-evaluate")
     args = parser.parse_args()
     register_configs()
     with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
         cfg = compose("config", overrides=[f"robot={args.robot}", f"trail={args.trail}",
                                            f"algo.total_frames={args.frames}"])
-    if OUT.exists():
-        shutil.rmtree(OUT)
-    OUT.mkdir(parents=True)
+    checkpoint = OUT / "train" / "oracle.pt"
+    resume = str(checkpoint) if args.resume and checkpoint.exists() else None
+    if not resume:
+        shutil.rmtree(OUT, ignore_errors=True)
+    OUT.mkdir(parents=True, exist_ok=True)
 
     bare = bare_env_rate(cfg)
     print(f"bare HikingEnv: {bare:.0f} steps/s at N={cfg.algo.num_envs}", flush=True)
@@ -74,8 +78,8 @@ def main() -> None:
     env.close()
 
     t0 = time.perf_counter()
-    run = train_oracle(cfg, OUT / "train")
-    train_s = time.perf_counter() - t0
+    run = train_oracle(cfg, OUT / "train", resume=resume)
+    train_s = time.perf_counter() - t0  # this session's share when resuming
 
     results = {
         "untrained": evaluate(cfg, untrained, OUT / "eval_untrained", label="untrained"),
@@ -83,7 +87,7 @@ def main() -> None:
     }
     rows = compare(results)
     title = (f"Oracle ({args.robot}, trail={args.trail}) after {run.iterations} iterations "
-             f"({args.frames:,} frames, {train_s / 60:.0f} min) vs its initialisation; "
+             f"({args.frames:,} frames) vs its initialisation; "
              f"protocol: {cfg.eval.robots} robots x {cfg.eval.seconds:.0f} s, levels "
              f"{list(cfg.eval.levels)}, {cfg.eval.runs} runs")
     write_markdown(OUT / "comparison.md", rows, label="Policy", title=title)
@@ -94,7 +98,8 @@ def main() -> None:
     loop_rate = float(cols["frames_per_s"][1:].mean()) if len(cols["frames_per_s"]) > 1 else 0.0
     summary = {
         "robot": args.robot, "trail": args.trail, "frames": args.frames,
-        "iterations": run.iterations, "train_minutes": train_s / 60,
+        "iterations": run.iterations, "train_minutes_this_session": train_s / 60,
+        "resumed": bool(resume),
         "training_loop_frames_per_s": loop_rate, "bare_env_steps_per_s": bare,
         "loop_over_bare": loop_rate / bare,
         "overall": {label: {m: list(v) for m, v in r["rows"]["overall"].items()}
