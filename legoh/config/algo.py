@@ -11,7 +11,7 @@ class OracleConfig:
     num_envs: int = 64  # overrides env.num_envs for training
     workers: int = 1  # collector processes (MultiSyncCollector above 1), num_envs split evenly
     steps_per_env: int = 24  # policy steps per env per iteration
-    total_frames: int = 500_000  # env steps over the whole run: ~7 min on a 2-core CPU
+    total_frames: int = 500_000  # env steps over the whole run: ~5 min on a 2-core CPU
     lr: float = 2e-4
     desired_kl: float = 0.01  # adaptive learning rate target
     clip_epsilon: float = 0.2
