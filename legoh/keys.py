@@ -11,6 +11,7 @@ SCANDOTS = ("obs", "scandots")  # (132,) heights on a 12 x 11 grid in the yaw fr
 PRIVILEGED = ("obs", "privileged")  # (K,) friction, mass/CoM offsets, strength, lin. vel., category
 GOAL = ("obs", "goal")  # (4,) terminus xy and middle waypoint xy, robot yaw frame, m
 DEPTH = ("obs", "depth")  # (T, H, W) depth frames, oldest first, normalised to [-0.5, 0.5]
+DEPTH_FRESH = ("obs", "depth_fresh")  # (1,) bool: a new depth frame arrived on this step
 
 # Supervision from the trail (never a deployed input)
 EXPERT_GOALS = ("expert", "goals")  # (3, 2) next three expert waypoints, robot yaw frame, m
@@ -19,6 +20,16 @@ EXPERT_GOALS = ("expert", "goals")  # (3, 2) next three expert waypoints, robot 
 ACTION = "action"
 TEACHER_ACTION = ("teacher", "action")
 TEACHER_LATENT = ("teacher", "latent")
+
+# Student (unified policy and baselines): written by the navigation module, read by the
+# locomotion module and the distillation losses
+IS_INIT = "is_init"  # (1,) bool: first step of an episode (torchrl's InitTracker)
+STUDENT_LATENT = ("student", "latent")  # (32,) z_uni, regresses the oracle's z_tea
+NAV_GOAL = ("student", "nav_goal")  # (G,) what locomotion sees: (delta_g0, g1) for LEGO-H
+GOAL_CORRECTION = ("student", "goal_correction")  # (2,) delta_g0, robot yaw frame
+NEAR_GOALS = ("student", "near_goals")  # (3, 2) predicted g1..g3, robot yaw frame, m
+NAV_STATE = ("recurrent", "nav_state")  # (*S) the navigation core's recurrent state
+NAV_HELD = ("recurrent", "nav_held")  # (D,) outputs held between depth frames (latent tiling)
 
 # Step results
 REWARD = "reward"

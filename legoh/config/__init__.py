@@ -13,14 +13,14 @@ from typing import Any
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
 
-from legoh.config.algo import OracleConfig
+from legoh.config.algo import LossWeights, OracleConfig, UnifiedConfig
 from legoh.config.env import EnvConfig
 from legoh.config.eval import EvalConfig
 from legoh.config.robot import CameraConfig, RobotConfig
 from legoh.config.trail import TrailConfig
 
-__all__ = ["CameraConfig", "Config", "EnvConfig", "OracleConfig", "RobotConfig", "SimConfig",
-           "TrailConfig", "register_configs", "validate"]
+__all__ = ["CameraConfig", "Config", "EnvConfig", "LossWeights", "OracleConfig", "RobotConfig",
+           "SimConfig", "TrailConfig", "UnifiedConfig", "register_configs", "validate"]
 
 
 class Mode(Enum):
@@ -65,6 +65,7 @@ def register_configs() -> None:
     cs.store(group="schema/robot", name="robot", node=RobotConfig)
     cs.store(group="schema/trail", name="trail", node=TrailConfig)
     cs.store(group="schema/algo", name="oracle", node=OracleConfig)
+    cs.store(group="schema/algo", name="unified", node=UnifiedConfig)
     cs.store(group="schema/eval", name="eval", node=EvalConfig)
 
 

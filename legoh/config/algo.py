@@ -1,6 +1,6 @@
 """Algorithm config schemas (``conf/algo/*.yaml``)."""
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 
 @dataclass
@@ -26,3 +26,45 @@ class OracleConfig:
     adaptation_lr: float = 1e-3  # the adaptation module's own optimiser
     checkpoint_every: int = 20  # iterations between checkpoints (and one at the end)
     trajectory_every: int = 10  # iterations between trajectories logged to MCAP
+
+
+@dataclass
+class LossWeights:
+    """Appendix Table 7. The paper does not say which w belongs to which loss: this mapping
+    is ours (docs/unified.md explains each choice)."""
+
+    w1: float = 1.0  # PPO (clipped surrogate + value + entropy, torchrl's summed loss_*)
+    w2: float = 1.0  # action imitation: student action mean vs the oracle's (MSE)
+    w3: float = 1.0  # goal correction delta_g0 vs its expert target (MSE)
+    w4: float = 1.0  # near goals g1..g3 vs the expert goals (MSE, m^2)
+    w5: float = 1.0  # VAE reconstruction (the HLM prior's own training)
+    w6: float = 1.0  # VAE KL (the prior's own training)
+    w7: float = 100.0  # latent imitation: z_uni vs the oracle's z_tea (MSE of Tanh outputs: small)
+    w8: float = 2.0  # HLM: c_mt x masked triplet + c_ms x cosine similarity
+    c_mt: float = 0.85  # masked triplet share of HLM
+    c_ms: float = 0.15  # cosine-similarity share of HLM
+
+
+@dataclass
+class UnifiedConfig(OracleConfig):
+    """Stage 2: a depth student (LEGO-H or a baseline) learned from the oracle: the student
+    acts (DAgger), the oracle labels; PPO on Table 6 + point navigation; imitation and HLM.
+
+    Inherits the PPO settings of the oracle stage (same meaning, same defaults)."""
+
+    name: str = "unified"
+    student: str = "lego_h"  # lego_h | ep_h | rma_b | rma_h (legoh/modules/students.py)
+    net: str = "small"  # TC-ViTs size preset: small (CPU) | paper (31.25 M with the GRU)
+    core: str = "gru"  # recurrent goal adaptation core: gru | transformer
+    prior: str = "hlm"  # action prior: hlm (masked VAE) | vae (vanilla VAE) | none
+    ppo: bool = True  # RL on the student's own rollouts (EP-H and RMA-* distill only)
+    num_envs: int = 32
+    total_frames: int = 100_000  # env steps of stage 2 (~ minutes on a 2-core CPU)
+    lr: float = 5e-4
+    vae_steps: int = 4  # prior updates on the oracle's actions per iteration (alternating)
+    vae_lr: float = 1e-3
+    bptt_steps: int = 24  # steps unrolled through the recurrent core for the imitation losses
+    oracle_checkpoint: str | None = None  # None: train one first (oracle_frames), or reuse it
+    oracle_frames: int = 200_000  # budget of the oracle trained when none is given
+    depth_far: float | None = None  # m: clip depth nearer than the camera's far plane (EP-H: 2)
+    weights: LossWeights = field(default_factory=LossWeights)
