@@ -26,13 +26,23 @@ def run(cfg: DictConfig) -> None:
 
 
 def train_and_evaluate(cfg: DictConfig, out_dir: Path) -> None:
-    """The main job: train the oracle, benchmark it, print where everything went."""
+    """The main job: train the stage ``cfg.algo`` asks for, benchmark it, print where
+    everything went. A stage-2 algorithm first trains (or reuses) the oracle it needs."""
     from legoh.eval.benchmark import evaluate
     from legoh.eval.curves import plot_learning_curve
-    from legoh.train.oracle import train_oracle
 
-    run = train_oracle(cfg, out_dir, resume=cfg.resume)
-    result = evaluate(cfg, run.actor, out_dir, label="oracle")
+    if cfg.algo.name == "oracle":
+        from legoh.train.oracle import train_oracle
+
+        run = train_oracle(cfg, out_dir, resume=cfg.resume)
+        result = evaluate(cfg, run.actor, out_dir, label="oracle")
+    else:
+        from legoh.train.unified import student_eval_env_fn, train_student
+
+        run = train_student(cfg, out_dir, resume=cfg.resume)
+        result = evaluate(cfg, run.student.policy, out_dir, label=cfg.algo.name,
+                          env_fn=student_eval_env_fn(cfg, run.student))
+        print(f"[legoh] oracle used:       {run.oracle}")
     print(Path(result["paths"]["markdown"]).read_text())
     print(f"[legoh] checkpoint:        {run.checkpoint}")
     print(f"[legoh] training log:      {run.csv} (CSV), {run.mcap} (MCAP)")

@@ -56,6 +56,8 @@ class Config:
     resume: str | None = None  # train: a checkpoint to continue from (a killed run resumes)
     checkpoint: str | None = None  # eval: the policy to evaluate; none: the untrained one
     stand_seconds: float = 3.0  # s mode=stand holds the default pose before rendering
+    # where stage 2 keeps the oracles it trained, keyed by their config, for reuse
+    artefacts: str = "artefacts"
 
 
 def register_configs() -> None:

@@ -157,6 +157,7 @@ class HikingEnv(EnvBase):
         self.history = np.zeros((n, self.cfg.history, self.proprio_dim), dtype=np.float32)
         d = self.cfg.depth
         self.depth = np.zeros((n, d.frames, d.height, d.width), dtype=np.float32)
+        self.depth_fresh = np.zeros(n, dtype=bool)  # a frame was rendered on this step
         self.push_every = max(1, int(round(self.cfg.randomization.push_interval_s / self.dt)))
 
     def _make_specs(self) -> None:
@@ -179,6 +180,7 @@ class HikingEnv(EnvBase):
         if self.cfg.depth.enabled:
             d = self.cfg.depth
             obs["depth"] = Bounded(-0.5, 0.5, shape=(n, d.frames, d.height, d.width), dtype=f32)
+            obs["depth_fresh"] = Categorical(2, shape=(n, 1), dtype=torch.bool)
         info = {
             "reached": flag(), "fell": flag(),
             "waypoint": Unbounded(shape=(n,), dtype=torch.int64),
@@ -268,6 +270,7 @@ class HikingEnv(EnvBase):
             buf[ids] = 0
         if self.depth_cam is not None:
             self.depth[ids] = self._render_depth(ids)[:, None]
+            self.depth_fresh[ids] = True
 
     # ----------------------------------------------------------------- step
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
@@ -308,9 +311,11 @@ class HikingEnv(EnvBase):
         self.last_dof_vel = state.dof_vel
         self.last_torques = state.torques
         self.frame_clock += 1  # one clock for all envs: every env gets a frame on the same step
+        self.depth_fresh[:] = False
         if self.depth_cam is not None and self.frame_clock % self.cfg.depth.every == 0:
             frame = self._render_depth(np.arange(self.num_envs))
             self.depth = np.concatenate([self.depth[:, 1:], frame[:, None]], axis=1)
+            self.depth_fresh[:] = True
         out = self._observe(reached, fell)
         out.set(keys.REWARD, torch.as_tensor(reward, dtype=torch.float32).unsqueeze(-1))
         out.set(keys.TERMINATED, torch.as_tensor(terminated).unsqueeze(-1))
@@ -507,6 +512,7 @@ class HikingEnv(EnvBase):
                "goal": t(np.concatenate([terminus, middle], axis=1))}
         if self.depth_cam is not None:
             obs["depth"] = t(self.depth)
+            obs["depth_fresh"] = t(self.depth_fresh[:, None], torch.bool)
         i64 = torch.int64
         info = {
             "reached": t(reached, torch.bool), "fell": t(fell, torch.bool),

@@ -18,13 +18,14 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 import torch
 from omegaconf import DictConfig, OmegaConf
+from torchrl.envs import EnvBase
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 from tqdm import tqdm
 
@@ -69,14 +70,21 @@ def run_config(cfg: DictConfig, run: int) -> DictConfig:
     return OmegaConf.merge(cfg, {"seed": ev.seed + run, "trail": trail})
 
 
+def eval_env_settings(cfg: DictConfig, run: int) -> tuple[DictConfig, int, dict]:
+    """(config, robots, env overrides) of run ``run``'s evaluation env: curriculum off,
+    episodes of ``eval.seconds`` (the evaluation reach radius comes with ``evaluation``)."""
+    ev = cfg.eval
+    curriculum = dataclasses.replace(OmegaConf.to_object(cfg.env.curriculum), enabled=False)
+    return (run_config(cfg, run), ev.robots,
+            {"episode_length_s": float(ev.seconds), "curriculum": curriculum})
+
+
 def make_eval_env(cfg: DictConfig, run: int = 0):
     """The evaluation env of run ``run`` (curriculum off, evaluation reach radius)."""
     from legoh.envs.hiking_env import make_env
 
-    ev = cfg.eval
-    curriculum = dataclasses.replace(OmegaConf.to_object(cfg.env.curriculum), enabled=False)
-    return make_env(run_config(cfg, run), num_envs=ev.robots, evaluation=True,
-                    episode_length_s=float(ev.seconds), curriculum=curriculum)
+    run_cfg, robots, overrides = eval_env_settings(cfg, run)
+    return make_env(run_cfg, num_envs=robots, evaluation=True, **overrides)
 
 
 @contextmanager
@@ -160,9 +168,13 @@ def plot_run(env, records: list[LevelRecord], path: Path, title: str) -> Path:
 
 
 def evaluate(cfg: DictConfig, actor, out_dir: str | Path, label: str = "policy",
-             progress: bool = True) -> dict:
+             progress: bool = True, env_fn: Callable[[int], EnvBase] | None = None) -> dict:
     """Run the protocol ``cfg.eval`` with ``actor`` (a TensorDict policy writing
     ``"action"``; its deterministic mode is used) and write the tables and picture.
+
+    ``env_fn(run)`` builds run ``run``'s env when the policy needs more than the plain
+    evaluation env (a depth student: depth on, recurrent state primed); it must start from
+    :func:`eval_env_settings`.
 
     Returns:
         ``{"label", "rows": {category..., "overall": {metric: (mean, std)}},
@@ -181,7 +193,7 @@ def evaluate(cfg: DictConfig, actor, out_dir: str | Path, label: str = "policy",
     try:
         with torch_threads(1):
             for r in range(ev.runs):
-                env = make_eval_env(cfg, r)
+                env = env_fn(r) if env_fn is not None else make_eval_env(cfg, r)
                 try:
                     records = []
                     for level in ev.levels:

@@ -39,8 +39,12 @@ def adapt_learning_rate(lr: float, kl: float, desired_kl: float) -> float:
 
 
 def ppo_update(loss: ClipPPOLoss, optimizer: torch.optim.Optimizer, data: TensorDictBase,
-               cfg: OracleConfig, generator: torch.Generator | None = None) -> dict[str, float]:
-    """Epochs of minibatch updates on a flat batch that already holds GAE advantages."""
+               cfg: OracleConfig, generator: torch.Generator | None = None,
+               scale: float = 1.0) -> dict[str, float]:
+    """Epochs of minibatch updates on a flat batch that already holds GAE advantages.
+
+    ``scale`` multiplies the summed loss (the unified stage's w1); logged values are unscaled.
+    """
     sums: dict[str, float] = defaultdict(float)
     count = 0
     size = data.shape[0] // cfg.minibatches
@@ -49,7 +53,7 @@ def ppo_update(loss: ClipPPOLoss, optimizer: torch.optim.Optimizer, data: Tensor
         for k in range(cfg.minibatches):
             batch = data[order[k * size:(k + 1) * size]]
             out = loss(batch)
-            total = sum(v for key, v in out.items() if key.startswith("loss_"))
+            total = scale * sum(v for key, v in out.items() if key.startswith("loss_"))
             optimizer.zero_grad()
             total.backward()
             grad_norm = torch.nn.utils.clip_grad_norm_(loss.parameters(), cfg.max_grad_norm)

@@ -1,0 +1,371 @@
+"""Depth students: LEGO-H's unified policy and the baselines, as one navigation module
+(depth rate, recurrent) plus one locomotion module (policy rate).
+
+Every student is a :class:`Navigator` wrapped by :class:`NavigationModule` and followed by
+the same locomotion actor (:func:`make_locomotion_actor`):
+
+==========  ===========================================  ==================================
+student     navigation (runs on each new depth frame)    what locomotion sees
+==========  ===========================================  ==================================
+lego_h      TC-ViTs over the frame history + GRU / CT    z_uni, (delta_g0, g1)
+ep_h        per-frame depth CNN (2 m range) + GRU        depth latent, predicted heading
+rma_b       none (blind): proprio-history encoder        history latent, terminus/waypoint
+rma_h       frame-stack CNN -> g1..g3, trained apart     history latent, g1 (detached)
+==========  ===========================================  ==================================
+
+Latent tiling: :meth:`Navigator.frame` runs only on steps where a depth frame arrived (or
+an episode began); its outputs are held in the recurrent state ``NAV_HELD`` and reused on
+the steps between frames. :meth:`Navigator.act` runs every step on the held outputs (and
+per-step inputs such as the proprioception history).
+
+Recurrent state travels through the TensorDict the torchrl way: the module reads
+``NAV_STATE``/``NAV_HELD`` and writes them under ``"next"``; :func:`student_primer` declares
+them so the env resets them to zeros (a zero state is a fresh episode).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+from tensordict import TensorDictBase
+from tensordict.nn import TensorDictModule, TensorDictModuleBase
+from torch import nn
+from torchrl.data import Composite, Unbounded
+from torchrl.modules import IndependentNormal, ProbabilisticActor
+
+from legoh import keys
+from legoh.modules.actor_critic import LOC, LOG_PROB, SCALE, ConcatMLP, GaussianPolicyHead
+from legoh.modules.encoders import HistoryConvEncoder, mlp
+
+LATENT_DIM = 32  # z_uni has the size of the oracle's z_tea (scandot encoder output)
+EP_DEPTH_RANGE = 2.0  # m: EP-H's short depth range (Extreme Parkour clips depth at 2 m)
+
+
+@dataclass(frozen=True)
+class StudentDims:
+    """Per-env input sizes of a student, read from the env's observation spec."""
+
+    proprio: int
+    history: int
+    depth: tuple[int, int, int] | None  # (frames, H, W), None without depth
+    depth_far: float = 3.0  # m: the env's far plane (depth is normalised by it)
+
+    @classmethod
+    def from_spec(cls, spec, depth_far: float = 3.0) -> StudentDims:
+        obs = spec["obs"]
+        depth = tuple(obs["depth"].shape[-3:]) if "depth" in obs.keys() else None
+        hist, proprio = obs["proprio_history"].shape[-2:]
+        return cls(proprio=proprio, history=hist, depth=depth, depth_far=depth_far)
+
+    def as_layout(self) -> dict[str, tuple[int, ...]]:
+        """Observation layout stored in checkpoints (a student from another robot fails)."""
+        out = {"/".join(keys.PROPRIO): (self.proprio,),
+               "/".join(keys.PROPRIO_HISTORY): (self.history, self.proprio)}
+        if self.depth is not None:
+            out["/".join(keys.DEPTH)] = self.depth
+        return out
+
+
+class Navigator(nn.Module):
+    """What a student's navigation half provides (subclasses fill it in).
+
+    Attributes:
+        uses_depth: ``frame`` needs ``("obs","depth")``; otherwise it runs every step.
+        state_shape: per-env recurrent state (zeros: a new episode).
+        held_dim: size of the outputs held between frames.
+        nav_dim: size of ``NAV_GOAL``. num_goals: near goals predicted (0: none).
+        in_keys: observation keys read by ``frame`` and ``act``.
+    """
+
+    uses_depth: bool = True
+    state_shape: tuple[int, ...] = (1,)
+    held_dim: int = 1
+    nav_dim: int = 4
+    num_goals: int = 0
+    in_keys: tuple = (keys.GOAL, keys.PROPRIO)
+
+    def frame(self, obs: dict, state: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Depth-rate step on B rows -> (held (B, held_dim), new state (B, *state_shape))."""
+        raise NotImplementedError
+
+    def act(self, obs: dict, held: torch.Tensor) -> dict[str, torch.Tensor]:
+        """Policy-rate outputs: ``latent`` (B, 32), ``nav_goal`` (B, nav_dim),
+        ``near_goals`` (B, num_goals, 2), ``goal_correction`` (B, 2)."""
+        raise NotImplementedError
+
+
+def _unit(xy: torch.Tensor) -> torch.Tensor:
+    return xy / xy.norm(dim=-1, keepdim=True).clamp_min(1e-6)
+
+
+class LegoHNavigator(Navigator):
+    """TC-ViTs (legoh/modules/tcvit.py): latent z_uni, delta_g0 and g1..g3 from the frame
+    history, the goals and proprioception. Only (delta_g0, g1) go to locomotion."""
+
+    in_keys = (keys.DEPTH, keys.GOAL, keys.PROPRIO)
+
+    def __init__(self, dims: StudentDims, preset: str = "small", core: str = "gru") -> None:
+        super().__init__()
+        from legoh.modules.tcvit import TCViTs, tcvit_config
+
+        if dims.depth is None:
+            raise ValueError("lego_h needs depth frames: the env has env.depth.enabled=False")
+        frames, height, width = dims.depth
+        self.cfg = tcvit_config(preset, core=core, frames=frames, height=height, width=width)
+        self.net = TCViTs(self.cfg, proprio_dim=dims.proprio)
+        self.state_shape = tuple(self.net.state_shape)
+        self.num_goals = self.cfg.num_goals
+        self.held_dim = LATENT_DIM + 2 + 2 * self.num_goals
+
+    def frame(self, obs, state):
+        out = self.net(obs[keys.DEPTH], obs[keys.GOAL], obs[keys.PROPRIO], state)
+        held = torch.cat([out["latent"], out["goal_correction"],
+                          out["near_goals"].flatten(-2)], dim=-1)
+        return held, out["state"]
+
+    def act(self, obs, held):
+        latent, corr, goals = held.split([LATENT_DIM, 2, 2 * self.num_goals], dim=-1)
+        goals = goals.unflatten(-1, (self.num_goals, 2))
+        return {"latent": latent, "goal_correction": corr, "near_goals": goals,
+                "nav_goal": torch.cat([corr, goals[..., 0, :]], dim=-1)}
+
+
+class DepthCNN(nn.Module):
+    """Small conv net over (B, C, H, W) depth (Extreme Parkour's depth backbone shape:
+    conv 5x5 - pool - conv 3x3, then a linear layer), output (B, out_dim) with ELU."""
+
+    def __init__(self, channels: int, height: int, width: int, out_dim: int = 128) -> None:
+        super().__init__()
+        self.conv = nn.Sequential(
+            nn.Conv2d(channels, 16, 5, padding=2), nn.ELU(), nn.MaxPool2d(2),
+            nn.Conv2d(16, 32, 3, padding=1), nn.ELU(), nn.MaxPool2d(2), nn.Flatten())
+        flat = 32 * (height // 4) * (width // 4)
+        self.head = nn.Sequential(nn.Linear(flat, out_dim), nn.ELU())
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.head(self.conv(x))
+
+
+class EPHNavigator(Navigator):
+    """EP-H: the newest frame only, depth clipped at 2 m, a CNN, a GRU over frames; outputs
+    a depth latent and a heading = unit(terminus direction + predicted correction)."""
+
+    in_keys = (keys.DEPTH, keys.GOAL, keys.PROPRIO)
+    nav_dim = 2
+
+    def __init__(self, dims: StudentDims, hidden: int = 256) -> None:
+        super().__init__()
+        if dims.depth is None:
+            raise ValueError("ep_h needs depth frames: the env has env.depth.enabled=False")
+        _, height, width = dims.depth
+        # normalised depth is d / far - 0.5: the 2 m clip in those units
+        self.clip = min(EP_DEPTH_RANGE / dims.depth_far, 1.0) - 0.5
+        self.cnn = DepthCNN(1, height, width)
+        self.gru = nn.GRUCell(128 + 4 + dims.proprio, hidden)
+        self.head = nn.Linear(hidden, LATENT_DIM + 2)
+        self.state_shape = (hidden,)
+        self.held_dim = LATENT_DIM + 2
+
+    def frame(self, obs, state):
+        depth = obs[keys.DEPTH][:, -1:].clamp(max=self.clip)
+        x = torch.cat([self.cnn(depth), obs[keys.GOAL], obs[keys.PROPRIO]], dim=-1)
+        h = self.gru(x, state)
+        latent, corr = self.head(h).split([LATENT_DIM, 2], dim=-1)
+        return torch.cat([torch.tanh(latent), corr], dim=-1), h
+
+    def act(self, obs, held):
+        latent, corr = held.split([LATENT_DIM, 2], dim=-1)
+        heading = _unit(_unit(obs[keys.GOAL][..., :2]) + corr)
+        return {"latent": latent, "goal_correction": corr, "nav_goal": heading}
+
+
+class HistoryLatent(nn.Module):
+    """RMA's adaptation encoder over the proprioception history -> a Tanh latent (B, 32)."""
+
+    def __init__(self, dims: StudentDims) -> None:
+        super().__init__()
+        self.enc = HistoryConvEncoder(dims.proprio, dims.history, LATENT_DIM)
+        self.out = nn.Tanh()
+
+    def forward(self, history: torch.Tensor) -> torch.Tensor:
+        return self.out(self.enc(history))
+
+
+class RMABNavigator(Navigator):
+    """RMA-B (blind): a latent from the proprioception history; the given terminus and
+    middle waypoint are the navigation input. Nothing runs at depth rate."""
+
+    uses_depth = False
+    in_keys = (keys.GOAL, keys.PROPRIO_HISTORY)
+
+    def __init__(self, dims: StudentDims) -> None:
+        super().__init__()
+        self.history = HistoryLatent(dims)
+
+    def frame(self, obs, state):
+        return torch.zeros(state.shape[0], 1, device=state.device), state
+
+    def act(self, obs, held):
+        return {"latent": self.history(obs[keys.PROPRIO_HISTORY]), "nav_goal": obs[keys.GOAL]}
+
+
+class RMAHNavigator(Navigator):
+    """RMA-H: vision predicts g1..g3 from the stacked frames and the goals; locomotion is
+    RMA's (history latent) and follows g1 through a stop-gradient: the two halves are
+    learned separately (goal loss for vision, imitation for locomotion)."""
+
+    in_keys = (keys.DEPTH, keys.GOAL, keys.PROPRIO_HISTORY)
+    nav_dim = 2
+
+    def __init__(self, dims: StudentDims, num_goals: int = 3) -> None:
+        super().__init__()
+        if dims.depth is None:
+            raise ValueError("rma_h needs depth frames: the env has env.depth.enabled=False")
+        frames, height, width = dims.depth
+        self.num_goals = num_goals
+        self.cnn = DepthCNN(frames, height, width)
+        self.goals = mlp(128 + 4, [128, 2 * num_goals], None)
+        self.history = HistoryLatent(dims)
+        self.held_dim = 2 * num_goals
+
+    def frame(self, obs, state):
+        x = torch.cat([self.cnn(obs[keys.DEPTH]), obs[keys.GOAL]], dim=-1)
+        return self.goals(x), state
+
+    def act(self, obs, held):
+        goals = held.unflatten(-1, (self.num_goals, 2))
+        return {"latent": self.history(obs[keys.PROPRIO_HISTORY]), "near_goals": goals,
+                "nav_goal": goals[..., 0, :].detach()}
+
+
+STUDENTS = {"lego_h": LegoHNavigator, "ep_h": EPHNavigator, "rma_b": RMABNavigator,
+            "rma_h": RMAHNavigator}
+
+
+def make_navigator(name: str, dims: StudentDims, preset: str = "small", core: str = "gru"
+                   ) -> Navigator:
+    """The navigation half of student ``name`` (one of :data:`STUDENTS`)."""
+    if name not in STUDENTS:
+        raise ValueError(f"unknown student {name!r}; choose one of {sorted(STUDENTS)}")
+    if name == "lego_h":
+        return LegoHNavigator(dims, preset, core)
+    return STUDENTS[name](dims)
+
+
+class NavigationModule(TensorDictModuleBase):
+    """Runs a :class:`Navigator` on a TensorDict step (batch (B,)), with latent tiling.
+
+    Reads the navigator's observation keys, ``IS_INIT``, ``DEPTH_FRESH`` (when it uses
+    depth), ``NAV_STATE`` and ``NAV_HELD``; writes ``STUDENT_LATENT``, ``NAV_GOAL``,
+    ``NEAR_GOALS``, ``GOAL_CORRECTION`` and the new state under ``"next"``.
+    """
+
+    def __init__(self, navigator: Navigator) -> None:
+        super().__init__()
+        self.navigator = navigator
+        extra = [keys.IS_INIT, keys.NAV_STATE, keys.NAV_HELD]
+        if navigator.uses_depth:
+            extra.append(keys.DEPTH_FRESH)
+        self.in_keys = list(navigator.in_keys) + extra
+        self.out_keys = [keys.STUDENT_LATENT, keys.NAV_GOAL, keys.NEAR_GOALS,
+                         keys.GOAL_CORRECTION, ("next", *keys.NAV_STATE),
+                         ("next", *keys.NAV_HELD)]
+
+    def state_spec(self, batch: tuple[int, ...] = ()) -> Composite:
+        """The recurrent entries, for torchrl's ``TensorDictPrimer`` (zeros at reset)."""
+        nav = self.navigator
+        return Composite({
+            keys.NAV_STATE: Unbounded(shape=(*batch, *nav.state_shape)),
+            keys.NAV_HELD: Unbounded(shape=(*batch, nav.held_dim))}, shape=batch)
+
+    def forward(self, td: TensorDictBase) -> TensorDictBase:
+        nav = self.navigator
+        obs = {k: td.get(k) for k in nav.in_keys}
+        start = td.get(keys.IS_INIT).reshape(-1)
+        state = td.get(keys.NAV_STATE) * (~start).view(-1, *[1] * len(nav.state_shape))
+        held = td.get(keys.NAV_HELD)
+        fresh = start | td.get(keys.DEPTH_FRESH).reshape(-1) if nav.uses_depth else None
+        if fresh is None or bool(fresh.all()):
+            held, state = nav.frame(obs, state)
+        elif bool(fresh.any()):
+            rows = fresh.nonzero().squeeze(-1)
+            new_held, new_state = nav.frame({k: v[rows] for k, v in obs.items()}, state[rows])
+            held = held.index_copy(0, rows, new_held)
+            state = state.index_copy(0, rows, new_state)
+        out = nav.act(obs, held)
+        batch = held.shape[0]
+        zeros = held.new_zeros
+        td.set(keys.STUDENT_LATENT, out["latent"])
+        td.set(keys.NAV_GOAL, out["nav_goal"])
+        td.set(keys.NEAR_GOALS, out.get("near_goals", zeros(batch, 0, 2)))
+        td.set(keys.GOAL_CORRECTION, out.get("goal_correction", zeros(batch, 2)))
+        td.set(("next", *keys.NAV_STATE), state)
+        td.set(("next", *keys.NAV_HELD), held)
+        return td
+
+
+def make_locomotion_actor(dims: StudentDims, nav_dim: int, action_dim: int,
+                          action_bound: float, hidden: tuple[int, ...] = (512, 256, 128),
+                          init_std: float = 0.5, min_std: float = 1e-4) -> ProbabilisticActor:
+    """The locomotion module: proprioception, z_uni and the navigation goal in, a diagonal
+    Normal over joint actions out (the oracle actor's MLP shape and distribution).
+
+    Reads ``PROPRIO`` (B, P), ``STUDENT_LATENT`` (B, 32), ``NAV_GOAL`` (B, nav_dim);
+    writes ``LOC``/``SCALE`` (B, A), ``"action"`` (B, A) and ``"sample_log_prob"`` (B,).
+    """
+    body = ConcatMLP([dims.proprio, LATENT_DIM, nav_dim], [1, 1, 1], hidden, action_dim, None)
+    head = TensorDictModule(GaussianPolicyHead(body, action_dim, action_bound, init_std, min_std),
+                            [keys.PROPRIO, keys.STUDENT_LATENT, keys.NAV_GOAL], [LOC, SCALE])
+    return ProbabilisticActor(head, in_keys={"loc": LOC, "scale": SCALE}, out_keys=[keys.ACTION],
+                              distribution_class=IndependentNormal,
+                              distribution_kwargs={"tanh_loc": False}, return_log_prob=True,
+                              log_prob_key=LOG_PROB)
+
+
+@dataclass
+class Student:
+    """A student policy: navigation then locomotion, plus its sizes."""
+
+    navigation: NavigationModule
+    locomotion: ProbabilisticActor
+    dims: StudentDims
+    name: str
+
+    @property
+    def policy(self):
+        """The acting policy (collector / benchmark): navigation then locomotion."""
+        from tensordict.nn import TensorDictSequential
+
+        return TensorDictSequential(self.navigation, self.locomotion)
+
+    def modules(self) -> dict[str, nn.Module]:
+        return {"navigation": self.navigation, "locomotion": self.locomotion}
+
+
+def make_student(name: str, dims: StudentDims, action_dim: int, action_bound: float,
+                 preset: str = "small", core: str = "gru", init_std: float = 0.5) -> Student:
+    """Student ``name`` (``lego_h``, ``ep_h``, ``rma_b``, ``rma_h``) for these input sizes."""
+    nav = make_navigator(name, dims, preset, core)
+    loco = make_locomotion_actor(dims, nav.nav_dim, action_dim, action_bound, init_std=init_std)
+    return Student(NavigationModule(nav), loco, dims, name)
+
+
+def unroll(navigation: NavigationModule, batch: TensorDictBase) -> TensorDictBase:
+    """Re-run the navigation module over a collected batch (N, T) with gradients, carrying
+    its recurrent state through time from the state stored at t = 0 (truncated BPTT).
+
+    Returns a TensorDict (N, T) with ``STUDENT_LATENT``, ``NAV_GOAL``, ``NEAR_GOALS`` and
+    ``GOAL_CORRECTION``.
+    """
+    outs = []
+    state, held = batch[:, 0].get(keys.NAV_STATE), batch[:, 0].get(keys.NAV_HELD)
+    for t in range(batch.shape[1]):
+        step = batch[:, t].select(*navigation.in_keys).clone(recurse=False)
+        step.set(keys.NAV_STATE, state)
+        step.set(keys.NAV_HELD, held)
+        step = navigation(step)
+        state, held = step.get(("next", *keys.NAV_STATE)), step.get(("next", *keys.NAV_HELD))
+        outs.append(step.select(keys.STUDENT_LATENT, keys.NAV_GOAL, keys.NEAR_GOALS,
+                                keys.GOAL_CORRECTION))
+    return torch.stack(outs, dim=1)

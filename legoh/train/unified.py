@@ -1,0 +1,360 @@
+"""Stage 2: a depth student (LEGO-H's unified policy or a baseline) learned from the oracle.
+
+Read it top to bottom: make sure an oracle exists (train one, or reuse the one a previous
+run of the same config left in ``artefacts/``), build the student and the depth env, then
+per iteration: the student acts (DAgger), the frozen oracle labels the batch (actions and
+scandot latent), the action prior (masked VAE for HLM) takes a few steps on the oracle's
+actions, PPO updates the locomotion module on the Table 6 + point-navigation rewards, and
+the imitation losses (action, latent, goals, HLM) update the whole student through time.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from omegaconf import DictConfig, OmegaConf
+from torchrl.envs import Compose, EnvBase, InitTracker, TensorDictPrimer, TransformedEnv
+from tqdm import tqdm
+
+from legoh import keys
+from legoh.checkpoint import (
+    CheckpointError,
+    load_checkpoint,
+    make_payload,
+    restore_rng,
+    save_checkpoint,
+)
+from legoh.config.algo import OracleConfig
+from legoh.envs.hiking_env import make_env
+from legoh.logs import McapLog, ScalarCSV
+from legoh.modules.actor_critic import LOC
+from legoh.modules.students import Student, StudentDims, make_student, unroll
+from legoh.objectives.distill import distillation_loss
+from legoh.objectives.ppo import make_ppo, ppo_update
+from legoh.train.oracle import batch_scalars, build_oracle, log_trajectory, train_oracle
+
+
+@dataclass
+class StudentRun:
+    """What a stage-2 run leaves behind."""
+
+    student: Student
+    checkpoint: Path
+    csv: Path
+    mcap: Path
+    iterations: int
+    oracle: Path
+
+
+# ----------------------------------------------------------------------------- oracle
+def oracle_config(cfg: DictConfig) -> DictConfig:
+    """The stage-1 config a stage-2 run needs: same robot, trail, env, sim and seed; oracle
+    defaults with ``algo.oracle_frames`` as the budget."""
+    algo = OmegaConf.structured(OracleConfig(total_frames=int(cfg.algo.oracle_frames)))
+    merged = OmegaConf.merge(cfg, {"algo": None})
+    merged.algo = algo
+    return merged
+
+
+def oracle_artefact_dir(cfg: DictConfig) -> Path:
+    """``artefacts/oracle-<robot>-<trail>-<hash>``: the hash covers every setting that
+    changes the oracle, so two stage-2 runs that need the same oracle share it."""
+    stage1 = oracle_config(cfg)
+    key = OmegaConf.to_yaml(OmegaConf.masked_copy(stage1, ["robot", "trail", "env", "sim",
+                                                           "seed", "algo"]), resolve=True)
+    digest = hashlib.sha256(key.encode()).hexdigest()[:10]
+    return Path(cfg.artefacts) / f"oracle-{cfg.robot.name}-{cfg.trail.name}-{digest}"
+
+
+def ensure_oracle(cfg: DictConfig) -> Path:
+    """The oracle checkpoint for this run: ``algo.oracle_checkpoint`` when given; else the
+    artefact of a previous run with the same stage-1 config (resumed if it was killed);
+    else one trained now with the small budget ``algo.oracle_frames``."""
+    if cfg.algo.oracle_checkpoint:
+        return Path(cfg.algo.oracle_checkpoint)
+    out = oracle_artefact_dir(cfg)
+    ckpt, done = out / "oracle.pt", out / "DONE"
+    if done.is_file() and ckpt.is_file():
+        print(f"[legoh] reusing the oracle at {ckpt}")
+        return ckpt
+    stage1 = oracle_config(cfg)
+    resume = str(ckpt) if ckpt.is_file() else None
+    print(f"[legoh] no oracle given: training one ({stage1.algo.total_frames} frames) in {out}")
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "config.yaml").write_text(OmegaConf.to_yaml(stage1, resolve=True))
+    run = train_oracle(stage1, out, resume=resume)
+    done.write_text(f"{run.iterations} iterations\n")
+    return run.checkpoint
+
+
+def load_oracle(cfg: DictConfig, path: Path, env: EnvBase):
+    """The frozen oracle actor and its critic (the student's critic starts from it)."""
+    stage1 = oracle_config(cfg)
+    dims, actor, critic, _ = build_oracle(env, stage1)
+    state = load_checkpoint(path, expect_robot=cfg.robot.name, expect_layout=dims.as_layout())
+    actor.load_state_dict(state["models"]["actor"])
+    critic.load_state_dict(state["models"]["critic"])
+    actor.requires_grad_(False)
+    return actor.eval(), critic
+
+
+# ----------------------------------------------------------------------------- env
+def student_env_overrides(cfg: DictConfig) -> dict:
+    """Env settings of stage 2: depth on (unless the student is blind), the unified
+    stage's point-navigation reward (Table 6, *), the student's depth range."""
+    from legoh.config.env import DepthConfig
+
+    depth = OmegaConf.to_object(cfg.env.depth)
+    assert isinstance(depth, DepthConfig)
+    depth.enabled = cfg.algo.student != "rma_b"
+    if cfg.algo.depth_far is not None:
+        depth.far = float(cfg.algo.depth_far)
+    rewards = dict(cfg.env.rewards)
+    rewards["pn_distance"] = 1.0
+    return {"depth": depth, "rewards": rewards}
+
+
+def wrap_student_env(env: EnvBase, state_spec) -> TransformedEnv:
+    """InitTracker (``is_init``) + zeros for the navigation module's recurrent state."""
+    return TransformedEnv(env, Compose(InitTracker(),
+                                       TensorDictPrimer(state_spec, expand_specs=False)))
+
+
+def make_student_env(cfg: DictConfig, num_envs: int, state_shapes: tuple, evaluation=False,
+                     **overrides) -> TransformedEnv:
+    """A stage-2 env (picklable through functools.partial: collector workers build it)."""
+    from torchrl.data import Composite, Unbounded
+
+    state_shape, held_dim = state_shapes
+    env = make_env(cfg, num_envs=num_envs, evaluation=evaluation,
+                   **{**student_env_overrides(cfg), **overrides})
+    spec = Composite({keys.NAV_STATE: Unbounded(shape=(num_envs, *state_shape)),
+                      keys.NAV_HELD: Unbounded(shape=(num_envs, held_dim))},
+                     shape=(num_envs,))
+    return wrap_student_env(env, spec)
+
+
+def state_shapes(student: Student) -> tuple:
+    nav = student.navigation.navigator
+    return tuple(nav.state_shape), int(nav.held_dim)
+
+
+def build_student(cfg: DictConfig, env: EnvBase) -> Student:
+    """The student of ``cfg.algo`` sized from a stage-2 env's specs."""
+    algo = cfg.algo
+    far = algo.depth_far if algo.depth_far is not None else cfg.env.depth.far
+    dims = StudentDims.from_spec(env.observation_spec, depth_far=float(far))
+    init_std = algo.init_noise_std if algo.ppo else 0.1  # distill-only students: little noise
+    return make_student(algo.student, dims, env.action_spec.shape[-1], cfg.env.action_clip,
+                        preset=algo.net, core=algo.core, init_std=init_std)
+
+
+def load_student(cfg: DictConfig, path: str | Path, student: Student) -> dict:
+    """Load a stage-2 checkpoint into ``student``; refuses another robot, layout or student."""
+    state = load_checkpoint(path, expect_robot=cfg.robot.name,
+                            expect_layout=student.dims.as_layout())
+    have = state["extra"].get("student")
+    if have != cfg.algo.student:
+        raise CheckpointError(f"{path} holds student {have!r}, but this run builds "
+                              f"{cfg.algo.student!r} (algo.student)")
+    for name, module in student.modules().items():
+        module.load_state_dict(state["models"][name])
+    return state
+
+
+# ----------------------------------------------------------------------------- prior
+def make_prior(cfg: DictConfig, action_dim: int):
+    """The action prior of ``algo.prior``: (VAE or None, its optimiser, the HLM loss)."""
+    prior = cfg.algo.prior
+    if prior == "none":
+        return None, None, None
+    if prior not in ("hlm", "vae"):
+        raise ValueError(f"unknown algo.prior {prior!r}; choose one of ['hlm', 'vae', 'none']")
+    from legoh.modules.vae import ActionVAE, ActionVAEConfig
+
+    vae = ActionVAE(action_dim, ActionVAEConfig(masked=prior == "hlm"))
+    optim = torch.optim.Adam(vae.parameters(), lr=cfg.algo.vae_lr)
+    w = cfg.algo.weights
+    bound = cfg.env.action_clip
+    loss = functools.partial(_prior_loss, vae, bound, w.c_mt, w.c_ms, prior)
+    return vae, optim, loss
+
+
+def _prior_loss(vae, bound, c_mt, c_ms, prior, teacher, student):
+    """HLM's terms (masked VAE); with the vanilla VAE only the latent similarity remains:
+    a vanilla VAE has no masked negative, so the triplet term has nothing to push away."""
+    from legoh.objectives.hlm import hlm_loss
+
+    out = hlm_loss(vae, teacher, student, bound, c_mt=c_mt, c_ms=c_ms)
+    if prior == "vae":
+        out = out.exclude(*[k for k in out.keys() if "triplet" in k])
+    return out
+
+
+def train_prior(vae, optim, teacher: torch.Tensor, cfg: DictConfig,
+                gen: torch.Generator) -> dict[str, float]:
+    """``algo.vae_steps`` minibatch steps of the prior on the oracle's actions (alternating
+    with distillation, as the paper trains HLM's VAE)."""
+    from legoh.objectives.hlm import vae_loss
+
+    w = cfg.algo.weights
+    stats: dict[str, float] = {}
+    size = max(1, teacher.shape[0] // cfg.algo.minibatches)
+    vae.requires_grad_(True)
+    for _ in range(cfg.algo.vae_steps):
+        idx = torch.randint(0, teacher.shape[0], (size,), generator=gen)
+        out = vae_loss(vae, teacher[idx], cfg.env.action_clip, generator=gen)
+        total = w.w5 * out["loss_recon"] + w.w6 * out["loss_kl"]
+        optim.zero_grad()
+        total.backward()
+        optim.step()
+        stats = {f"prior/{k}": float(v.detach()) for k, v in out.items() if v.numel() == 1}
+    vae.requires_grad_(False)  # frozen while it scores the student
+    return stats
+
+
+# ----------------------------------------------------------------------------- loop
+def label_with_oracle(oracle, batch) -> None:
+    """DAgger labels: the oracle's mean action and scandot latent on the student's states."""
+    with torch.no_grad():
+        out = oracle(batch.select(*oracle.in_keys).clone(recurse=False))
+    batch.set(keys.TEACHER_ACTION, out.get(LOC))
+    batch.set(keys.TEACHER_LATENT, out.get(keys.TEACHER_LATENT))
+
+
+def distill_step(student: Student, batch, cfg: DictConfig, optim, prior_loss) -> dict:
+    """One gradient step of the imitation losses over the whole (N, T) batch, the
+    navigation module re-run through time (truncated BPTT over the batch's T steps)."""
+    nav_out = unroll(student.navigation, batch)
+    head_in = nav_out.clone(recurse=False)
+    head_in.set(keys.PROPRIO, batch.get(keys.PROPRIO))
+    loc = student.locomotion.module[0](head_in).get(LOC)  # the Gaussian head's mean
+    out = distillation_loss(nav_out, loc, batch, cfg.algo.weights, prior_loss)
+    total = sum(v for k, v in out.items() if k.startswith("loss_"))
+    optim.zero_grad()
+    total.backward()
+    params = [p for m in student.modules().values() for p in m.parameters()]
+    torch.nn.utils.clip_grad_norm_(params, cfg.algo.max_grad_norm)
+    optim.step()
+    return {f"distill/{k}": float(v.detach()) for k, v in out.items() if v.numel() == 1}
+
+
+def train_student(cfg: DictConfig, out_dir: Path, resume: str | None = None) -> StudentRun:
+    """Train ``cfg.algo.student`` for ``cfg.algo.total_frames`` env steps."""
+    from legoh.train.collect import make_collector
+
+    algo = cfg.algo
+    out_dir.mkdir(parents=True, exist_ok=True)
+    oracle_path = ensure_oracle(cfg)
+    torch.manual_seed(cfg.seed)
+    gen = torch.Generator().manual_seed(cfg.seed)
+
+    probe = make_student_env(cfg, 1, ((1,), 1))  # sizes only
+    student = build_student(cfg, probe)
+    probe.close()
+    shapes = state_shapes(student)
+    env = make_student_env(cfg, algo.num_envs, shapes)
+    oracle, critic = load_oracle(cfg, oracle_path, env)
+    vae, vae_optim, prior_loss = make_prior(cfg, env.action_spec.shape[-1])
+
+    loss, gae = make_ppo(student.locomotion, critic, algo)
+    ppo_optim = torch.optim.Adam(loss.parameters(), lr=algo.lr)
+    distill_optim = torch.optim.Adam(
+        [p for m in student.modules().values() for p in m.parameters()], lr=algo.lr)
+    models = {**student.modules(), "critic": critic}
+    optims = {"ppo": ppo_optim, "distill": distill_optim}
+    if vae is not None:
+        models["vae"], optims["vae"] = vae, vae_optim
+    layout = student.dims.as_layout()
+
+    start = 0
+    if resume:
+        state = load_student(cfg, resume, student)
+        for name, module in models.items():
+            module.load_state_dict(state["models"][name])
+        for name, opt in optims.items():
+            opt.load_state_dict(state["optimizers"][name])
+        start = int(state["iteration"])
+        env.level[:] = np.asarray(state["curriculum"]["level"])
+        env.global_steps = int(state["curriculum"]["global_steps"])
+        restore_rng(state["rng"])
+        print(f"[legoh] resumed from {resume} at iteration {start}")
+
+    frames_per_batch = algo.num_envs * algo.steps_per_env
+    iterations = max(1, algo.total_frames // frames_per_batch)
+    collector = make_collector(cfg, functools.partial(make_student_env, cfg,
+                                                      state_shapes=shapes),
+                               student.policy, frames_per_batch,
+                               (iterations - start) * frames_per_batch, env=env)
+    csv = ScalarCSV(out_dir / "train.csv", resume=bool(resume))
+    mcap = McapLog(out_dir, stem="train")
+    ckpt_path = out_dir / f"{algo.name}.pt"
+    resolved = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
+
+    def checkpoint(iteration: int) -> None:
+        payload = make_payload(
+            models=models, optimizers=optims, iteration=iteration, robot=cfg.robot.name,
+            layout=layout, config=resolved, extra={"student": algo.student,
+                                                   "oracle": str(oracle_path)},
+            curriculum={"level": env.level.tolist(), "global_steps": env.global_steps})
+        save_checkpoint(ckpt_path, payload)
+
+    bar = tqdm(total=iterations, initial=start, desc=f"{algo.name} ({algo.student})", unit="it")
+    it, tick = start, time.perf_counter()
+    for batch in collector:
+        batch = batch.reshape(-1, batch.shape[-1])  # (envs, time)
+        label_with_oracle(oracle, batch)
+        stats = {}
+        if vae is not None:
+            stats.update(train_prior(vae, vae_optim, batch.get(keys.TEACHER_ACTION).reshape(
+                -1, batch.get(keys.TEACHER_ACTION).shape[-1]), cfg, gen))
+        if algo.ppo and algo.weights.w1:
+            with torch.no_grad():
+                gae(batch)
+            stats.update(ppo_update(loss, ppo_optim, batch.reshape(-1), algo, gen,
+                                    scale=algo.weights.w1))
+        stats.update(distill_step(student, batch, cfg, distill_optim, prior_loss))
+        stats.update(batch_scalars(batch))
+        now = time.perf_counter()
+        stats["frames_per_s"] = frames_per_batch / (now - tick)
+        tick = now
+        it += 1
+        csv.write(it, stats)
+        mcap.log_scalars(it, stats)
+        if it % algo.trajectory_every == 0 or it == iterations:
+            log_trajectory(mcap, it, batch, env.dt)
+        if it % algo.checkpoint_every == 0 or it == iterations:
+            checkpoint(it)
+        if hasattr(collector, "update_policy_weights_"):
+            collector.update_policy_weights_()
+        bar.update(1)
+        bar.set_postfix(fps=f"{stats['frames_per_s']:.0f}", reward=f"{stats['reward']:.3f}",
+                        imit=f"{stats.get('distill/loss_action', float('nan')):.3f}",
+                        ep_len=f"{stats['episode_frames'] * env.dt:.1f}s")
+    bar.close()
+    collector.shutdown()
+    csv.close()
+    mcap.close()
+    if it == start:
+        checkpoint(it)
+    return StudentRun(student=student, checkpoint=ckpt_path, csv=csv.path, mcap=mcap.path,
+                      iterations=it, oracle=oracle_path)
+
+
+def student_eval_env_fn(cfg: DictConfig, student: Student):
+    """The benchmark's env factory for a student: the eval env, stage-2 sensors, state."""
+    from legoh.eval.benchmark import eval_env_settings
+
+    shapes = state_shapes(student)
+
+    def make(run: int):
+        run_cfg, num_envs, overrides = eval_env_settings(cfg, run)
+        return make_student_env(run_cfg, num_envs, shapes, evaluation=True, **overrides)
+
+    return make
