@@ -1,0 +1,61 @@
+"""Run a study's sweep (optional) and gather its jobs into the paper-style table.
+
+    python experiments/study.py ablation_temporal              # gather multirun/ablation_temporal
+    python experiments/study.py plugin_hlm --run --frames 40000  # small-budget sweep, then gather
+
+Studies are the sweeps in ``conf/experiment/`` (ablation_temporal, ablation_prior,
+plugin_hlm, robots, benchmark). ``--run`` launches ``python run.py -m +experiment=<study>``
+with the budget overrides; each job trains (or reuses) its seed's oracle, trains its
+student, and benchmarks it. The table goes to ``experiments/results/<study>/``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from legoh.eval.study import STUDIES, study_table  # noqa: E402
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("study", choices=sorted(STUDIES))
+    parser.add_argument("--run", action="store_true", help="run the sweep first")
+    parser.add_argument("--frames", type=int, default=None, help="stage-2 frames per job")
+    parser.add_argument("--oracle-frames", type=int, default=None,
+                        help="frames of each seed's oracle (trained once, then reused)")
+    parser.add_argument("--seeds", default=None, help="comma-separated seeds, e.g. 0,1")
+    parser.add_argument("--trail", default=None, help="trail of every job (default: config)")
+    parser.add_argument("--sweep-dir", default=None,
+                        help="where the sweep's jobs are (default multirun/<study>)")
+    parser.add_argument("overrides", nargs="*", help="more Hydra overrides for every job")
+    args = parser.parse_args()
+
+    sweep_dir = Path(args.sweep_dir or ROOT / "multirun" / args.study)
+    if args.run:
+        cmd = [sys.executable, str(ROOT / "run.py"), "-m", f"+experiment={args.study}",
+               f"hydra.sweep.dir={sweep_dir}"]
+        if args.frames:
+            cmd.append(f"algo.total_frames={args.frames}")
+        if args.oracle_frames:
+            cmd.append(f"++algo.oracle_frames={args.oracle_frames}")
+        if args.seeds:
+            cmd.append(f"seed={args.seeds}")
+        if args.trail:
+            cmd.append(f"trail={args.trail}")
+        cmd += args.overrides
+        print("[study]", " ".join(cmd), flush=True)
+        subprocess.run(cmd, check=True, cwd=ROOT)
+    paths = study_table(sweep_dir, ROOT / "experiments" / "results" / args.study, args.study)
+    print(paths["markdown"].read_text(encoding="utf-8"))
+    for name, path in paths.items():
+        print(f"[study] {name}: {path}")
+
+
+if __name__ == "__main__":
+    main()
