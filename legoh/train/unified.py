@@ -157,12 +157,12 @@ def build_student(cfg: DictConfig, env: EnvBase) -> Student:
 
 def load_student(cfg: DictConfig, path: str | Path, student: Student) -> dict:
     """Load a stage-2 checkpoint into ``student``; refuses another robot, layout or student."""
-    state = load_checkpoint(path, expect_robot=cfg.robot.name,
-                            expect_layout=student.dims.as_layout())
-    have = state["extra"].get("student")
-    if have != cfg.algo.student:
+    have = load_checkpoint(path, expect_robot=cfg.robot.name)["extra"].get("student")
+    if have != cfg.algo.student:  # checked first: the clearest message for a mixed-up path
         raise CheckpointError(f"{path} holds student {have!r}, but this run builds "
                               f"{cfg.algo.student!r} (algo.student)")
+    state = load_checkpoint(path, expect_robot=cfg.robot.name,
+                            expect_layout=student.dims.as_layout())
     for name, module in student.modules().items():
         module.load_state_dict(state["models"][name])
     return state

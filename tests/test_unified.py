@@ -1,0 +1,111 @@
+"""Stage 2 end to end at tiny budgets: the oracle trained once and reused, a DAgger
+iteration per student family, resume, refusal of a foreign checkpoint, the benchmark of a
+student, and a study table gathered from real job folders."""
+
+import itertools
+import shutil
+from pathlib import Path
+
+import pytest
+import torch
+from hydra import compose, initialize_config_dir
+from omegaconf import OmegaConf
+
+from legoh.checkpoint import CheckpointError, load_checkpoint
+from legoh.config import validate
+from legoh.eval.benchmark import evaluate
+from legoh.eval.study import STUDIES, study_table
+from legoh.train.unified import (
+    ensure_oracle,
+    oracle_artefact_dir,
+    student_eval_env_fn,
+    train_student,
+)
+from tests.conftest import CONF_DIR, compose_config
+
+TINY = ("trail=flat", "algo.num_envs=4", "algo.steps_per_env=8", "algo.total_frames=64",
+        "algo.oracle_frames=512", "algo.minibatches=2", "algo.epochs=1",
+        "eval.robots=2", "eval.seconds=1.0", "eval.levels=[0]", "eval.runs=1",
+        "eval.variants=1")
+
+
+@pytest.fixture(scope="module")
+def artefacts(tmp_path_factory):
+    return tmp_path_factory.mktemp("artefacts")
+
+
+def tiny(algo, artefacts, *more):
+    return compose_config(f"algo={algo}", f"artefacts={artefacts}", *TINY, *more)
+
+
+def test_oracle_is_trained_once_then_reused(artefacts):
+    cfg = tiny("unified", artefacts)
+    first = ensure_oracle(cfg)
+    stamp = first.stat().st_mtime_ns
+    again = ensure_oracle(tiny("ep_h", artefacts))  # another student, same stage-1 config
+    assert again == first and first.stat().st_mtime_ns == stamp
+    other = oracle_artefact_dir(tiny("unified", artefacts, "seed=1"))
+    assert other != first.parent  # another seed needs another oracle
+
+
+@pytest.mark.parametrize("algo", ["unified", "ep_h_hlm", "rma_b"])
+def test_one_dagger_iteration_then_resume(artefacts, tmp_path, algo):
+    cfg = tiny(algo, artefacts)
+    run = train_student(cfg, tmp_path)
+    assert run.iterations == 2 and run.checkpoint.is_file()
+    rows = run.csv.read_text().splitlines()
+    assert "distill/loss_action" in rows[0] and len(rows) == 3
+    if algo == "unified":
+        assert "loss_objective" in rows[0] and "distill/loss_hlm_triplet" in rows[0]
+    more = OmegaConf.merge(cfg, {"algo": {"total_frames": 96}})
+    resumed = train_student(more, tmp_path, resume=str(run.checkpoint))
+    assert resumed.iterations == 3
+    state = load_checkpoint(run.checkpoint)
+    assert state["extra"]["student"] == cfg.algo.student
+
+
+def test_checkpoint_of_another_student_is_refused(artefacts, tmp_path):
+    run = train_student(tiny("rma_b", artefacts), tmp_path / "a")
+    with pytest.raises(CheckpointError, match="student 'rma_b'"):
+        train_student(tiny("rma_h", artefacts), tmp_path / "b", resume=str(run.checkpoint))
+
+
+def test_student_benchmark_and_study_table(artefacts, tmp_path):
+    """Two jobs of a sweep folder, benchmarked through the student's env, gathered."""
+    sweep = tmp_path / "multirun"
+    oracle = ensure_oracle(tiny("ep_h", artefacts))  # both seeds share it: keeps the test short
+    for seed in (0, 1):
+        cfg = tiny("ep_h", artefacts, f"seed={seed}", f"algo.oracle_checkpoint={oracle}")
+        job = sweep / f"ep_h-seed{seed}"
+        run = train_student(cfg, job)
+        torch.manual_seed(seed)
+        result = evaluate(cfg, run.student.policy, job, label="ep_h", progress=False,
+                          env_fn=student_eval_env_fn(cfg, run.student))
+        assert set(result["rows"]["overall"]) == {"SR", "TC", "TR", "MEV", "TTF", "T2R"}
+        (job / ".hydra").mkdir()
+        (job / ".hydra" / "config.yaml").write_text(OmegaConf.to_yaml(cfg))
+    paths = study_table(sweep, tmp_path / "table", "plugin_hlm")
+    text = paths["markdown"].read_text()
+    assert "| ep_h |" in text and "seeds [0, 1]" in text
+    shutil.rmtree(sweep)
+
+
+@pytest.mark.parametrize("study", sorted(STUDIES))
+def test_every_sweep_composes_all_its_jobs(study):
+    """Expand the sweep's parameters as Hydra's basic sweeper does; compose every job."""
+    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+        hydra_cfg = compose("config", overrides=[f"+experiment={study}"],
+                            return_hydra_config=True)
+        params = hydra_cfg.hydra.sweeper.params
+        axes = [[f"{k}={v}" for v in str(vals).split(",")] for k, vals in params.items()]
+        jobs = list(itertools.product(*axes))
+        assert len(jobs) >= 2
+        for job in jobs:
+            cfg = compose("config", overrides=[f"+experiment={study}", *job])
+            validate(cfg)
+            for override in job:
+                key, value = override.split("=")
+                node = OmegaConf.select(cfg, key)
+                have = node.name if key in ("algo", "robot") else node
+                assert str(have) == value, f"{study}: {override} composed as {have}"
+    assert Path(CONF_DIR, "experiment", f"{study}.yaml").is_file()
