@@ -65,7 +65,8 @@ class TCViTConfig:
     def __post_init__(self) -> None:
         if self.height % self.patch or self.width % self.patch:
             raise ValueError(f"patch {self.patch} must divide the depth image "
-                             f"{self.width} x {self.height}")
+                             f"{self.width} x {self.height} (the paper preset is sized for "
+                             "64 x 48 frames: env.depth.width=64 env.depth.height=48)")
         if self.dim % self.heads or self.core_hidden % self.core_heads:
             raise ValueError("heads must divide dim, and core_heads core_hidden")
 
