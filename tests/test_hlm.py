@@ -229,3 +229,13 @@ class TestPlugIn:
             loss(td)
         loss.set_keys(student="other")
         assert loss.in_keys[0] == "other"
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a GPU")
+def test_cuda_actions_with_a_cpu_generator():
+    """Training loops seed one cpu generator; the masks must still land on the actions' device."""
+    vae = ActionVAE(J, SMALL).cuda()
+    g = torch.Generator().manual_seed(0)
+    a = torch.randn(16, J, device="cuda")
+    assert vae_loss(vae, a, BOUND, generator=g)["loss_recon"].is_cuda
+    assert hlm_loss(vae, a, a, BOUND, generator=g)["loss_hlm_triplet"].is_cuda

@@ -72,16 +72,16 @@ def random_joint_mask(batch: int, num_joints: int, ratio: float,
 
     Returns a (batch, num_joints) bool mask, True = hidden. A fixed count (not a coin per
     joint) keeps every row's difficulty the same and guarantees a masked joint in each row.
-    ``device`` defaults to the generator's device (cpu without one).
+    The draw happens on the generator's device (cpu without one), so a cpu generator can
+    seed masks for cuda actions; the mask is then moved to ``device`` (default: the draw's).
     """
     if not 0.0 < ratio <= 1.0:
         raise ValueError(f"mask ratio must be in (0, 1], got {ratio}")
-    if device is None:
-        device = generator.device if generator is not None else "cpu"
     count = min(num_joints, max(1, round(ratio * num_joints)))
-    scores = torch.rand(batch, num_joints, generator=generator, device=device)
+    draw_on = generator.device if generator is not None else device
+    scores = torch.rand(batch, num_joints, generator=generator, device=draw_on)
     ranks = scores.argsort(dim=-1).argsort(dim=-1)  # a random permutation of 0..J-1 per row
-    return ranks < count
+    return (ranks < count).to(device if device is not None else scores.device)
 
 
 def normalize_actions(action: Tensor, bound: float) -> Tensor:

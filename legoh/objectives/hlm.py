@@ -59,8 +59,9 @@ def vae_loss(vae: ActionVAE, oracle_action: Tensor, bound: float,
     mask = torch.zeros_like(target, dtype=torch.bool)
     if cfg.masked:
         mask = random_joint_mask(rows, vae.num_joints, cfg.mask_ratio, generator, target.device)
-        keep_rows = torch.rand(rows, 1, generator=generator, device=target.device)
-        mask &= keep_rows < cfg.masked_rows
+        draw_on = generator.device if generator is not None else target.device
+        keep_rows = torch.rand(rows, 1, generator=generator, device=draw_on)
+        mask &= (keep_rows < cfg.masked_rows).to(target.device)
     out = vae(target, mask)
     recon = F.binary_cross_entropy_with_logits(out["logits"], target, reduction="none")
     kl = 0.5 * (out["mu"].pow(2) + out["logvar"].exp() - 1.0 - out["logvar"]).sum(-1).mean()
