@@ -33,8 +33,7 @@ def main() -> None:
     parser.add_argument("--trail", default=None, help="trail of every job (default: config)")
     parser.add_argument("--sweep-dir", default=None,
                         help="where the sweep's jobs are (default multirun/<study>)")
-    parser.add_argument("overrides", nargs="*", help="more Hydra overrides for every job")
-    args = parser.parse_args()
+    args, overrides = parser.parse_known_args()  # the rest: Hydra overrides for every job
 
     sweep_dir = Path(args.sweep_dir or ROOT / "multirun" / args.study)
     if args.run:
@@ -48,7 +47,7 @@ def main() -> None:
             cmd.append(f"seed={args.seeds}")
         if args.trail:
             cmd.append(f"trail={args.trail}")
-        cmd += args.overrides
+        cmd += overrides
         print("[study]", " ".join(cmd), flush=True)
         subprocess.run(cmd, check=True, cwd=ROOT)
     paths = study_table(sweep_dir, ROOT / "experiments" / "results" / args.study, args.study)

@@ -247,6 +247,13 @@ def distill_step(student: Student, batch, cfg: DictConfig, optim, prior_loss) ->
 
 def train_student(cfg: DictConfig, out_dir: Path, resume: str | None = None) -> StudentRun:
     """Train ``cfg.algo.student`` for ``cfg.algo.total_frames`` env steps."""
+    from legoh.eval.benchmark import torch_threads
+
+    with torch_threads(cfg.algo.torch_threads):
+        return _train_student(cfg, out_dir, resume)
+
+
+def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None) -> StudentRun:
     from legoh.train.collect import make_collector
 
     algo = cfg.algo
