@@ -99,16 +99,3 @@ def test_adaptive_learning_rate_rule() -> None:
     assert adapt_learning_rate(1e-3, kl=0.001, desired_kl=0.01) == pytest.approx(1.5e-3)
     assert adapt_learning_rate(1e-3, kl=0.01, desired_kl=0.01) == pytest.approx(1e-3)
     assert adapt_learning_rate(1e-5, kl=1.0, desired_kl=0.01) == pytest.approx(1e-5)  # clamp
-
-
-def test_two_collector_processes_feed_one_learner(tmp_path: Path) -> None:
-    cfg = compose_config(*TINY, "algo.workers=2", "algo.total_frames=64")
-    run = train_oracle(cfg, tmp_path)
-    assert run.iterations == 2
-    rows = run.csv.read_text().strip().splitlines()
-    assert len(rows) == 3
-
-
-def test_workers_must_divide_the_envs(tmp_path: Path) -> None:
-    with pytest.raises(ValueError, match="divisible"):
-        train_oracle(compose_config(*TINY, "algo.workers=3", "algo.total_frames=64"), tmp_path)

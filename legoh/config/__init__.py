@@ -14,13 +14,15 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
 
 from legoh.config.algo import LossWeights, OracleConfig, UnifiedConfig
+from legoh.config.collector import CollectorConfig, RayCollectorConfig
 from legoh.config.env import EnvConfig
 from legoh.config.eval import EvalConfig
 from legoh.config.robot import CameraConfig, RobotConfig
 from legoh.config.trail import TrailConfig
 
-__all__ = ["CameraConfig", "Config", "EnvConfig", "LossWeights", "OracleConfig", "RobotConfig",
-           "SimConfig", "TrailConfig", "UnifiedConfig", "register_configs", "validate"]
+__all__ = ["CameraConfig", "CollectorConfig", "Config", "EnvConfig", "LossWeights",
+           "OracleConfig", "RobotConfig", "SimConfig", "TrailConfig", "UnifiedConfig",
+           "register_configs", "validate"]
 
 
 class Mode(Enum):
@@ -49,10 +51,12 @@ class Config:
     trail: Any = MISSING
     algo: Any = MISSING
     eval: Any = MISSING
+    collector: Any = MISSING  # sync (this machine) | ray (Ray actors, a cluster)
     sim: SimConfig = field(default_factory=SimConfig)
     env: EnvConfig = field(default_factory=EnvConfig)
     mode: Mode = Mode.train  # train (then evaluate), eval (a checkpoint), stand (a picture)
     seed: int = 0
+    device: str = "cpu"  # learner and policy: cpu | cuda | cuda:N | auto (envs: CPU)
     resume: str | None = None  # train: a checkpoint to continue from (a killed run resumes)
     checkpoint: str | None = None  # eval: the policy to evaluate; none: the untrained one
     stand_seconds: float = 3.0  # s mode=stand holds the default pose before rendering
@@ -69,6 +73,8 @@ def register_configs() -> None:
     cs.store(group="schema/algo", name="oracle", node=OracleConfig)
     cs.store(group="schema/algo", name="unified", node=UnifiedConfig)
     cs.store(group="schema/eval", name="eval", node=EvalConfig)
+    cs.store(group="schema/collector", name="sync", node=CollectorConfig)
+    cs.store(group="schema/collector", name="ray", node=RayCollectorConfig)
 
 
 def validate(cfg: DictConfig, path: str = "") -> None:

@@ -29,6 +29,7 @@ from legoh.modules.actor_critic import (
 from legoh.modules.encoders import make_adaptation_module
 from legoh.objectives.adaptation import adaptation_loss
 from legoh.objectives.ppo import make_ppo, ppo_update
+from legoh.train.collect import make_collector, policy_device, sync_weights
 
 
 @dataclass
@@ -74,8 +75,11 @@ def train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None = None) -> O
     out_dir.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(cfg.seed)
     gen = torch.Generator().manual_seed(cfg.seed)
+    device = policy_device(cfg)  # the learner's; the envs step on the CPU
     env = make_env(cfg, num_envs=algo.num_envs)
     dims, actor, critic, adaptation = build_oracle(env, cfg)
+    for module in (actor, critic, adaptation):
+        module.to(device)
     loss, gae = make_ppo(actor, critic, algo)
     optimizer = torch.optim.Adam(loss.parameters(), lr=algo.lr)
     adapt_optim = torch.optim.Adam(adaptation.parameters(), lr=algo.adaptation_lr)
@@ -98,8 +102,8 @@ def train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None = None) -> O
 
     frames_per_batch = algo.num_envs * algo.steps_per_env
     iterations = max(1, algo.total_frames // frames_per_batch)
-    collector = make_collector(cfg, env, actor, frames_per_batch,
-                               (iterations - start) * frames_per_batch)
+    collector = make_collector(cfg, functools.partial(make_env, cfg), actor, frames_per_batch,
+                               (iterations - start) * frames_per_batch, env=env)
     csv = ScalarCSV(out_dir / "train.csv", resume=bool(resume))
     mcap = McapLog(out_dir, stem="train")
     ckpt_path = out_dir / "oracle.pt"
@@ -116,7 +120,8 @@ def train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None = None) -> O
     it = start
     tick = time.perf_counter()
     for batch in collector:
-        batch = batch.reshape(-1, batch.shape[-1])  # (envs, time), whatever the collector
+        # (envs, time) on the learner's device, whatever the collector
+        batch = batch.reshape(-1, batch.shape[-1]).to(device)
         with torch.no_grad():
             gae(batch)
         stats = ppo_update(loss, optimizer, batch.reshape(-1), algo, gen)
@@ -125,6 +130,7 @@ def train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None = None) -> O
         adapt.backward()
         adapt_optim.step()
         stats["loss_adaptation"] = float(adapt.detach())
+        sync_weights(collector)  # the workers act with the updated actor from the next batch
         stats.update(batch_scalars(batch))
         now = time.perf_counter()
         stats["frames_per_s"] = frames_per_batch / (now - tick)
@@ -150,33 +156,9 @@ def train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None = None) -> O
                      iterations=it)
 
 
-def make_collector(cfg: DictConfig, env: HikingEnv, actor, frames_per_batch: int,
-                   total_frames: int):
-    """torchrl's Collector on ``env``; with ``algo.workers`` > 1, a MultiSyncCollector over
-    that many processes, each stepping ``num_envs / workers`` envs of its own (seeded apart).
-    The curriculum then lives in the workers, so ``resume`` restores it only for one worker.
-    """
-    from torchrl.collectors import Collector, MultiSyncCollector
-
-    workers = cfg.algo.workers
-    if workers <= 1:
-        return Collector(env, actor, frames_per_batch=frames_per_batch,
-                         total_frames=total_frames,
-                         auto_register_policy_transforms=False)  # the actor is stateless
-    if cfg.algo.num_envs % workers:
-        raise ValueError(f"algo.num_envs={cfg.algo.num_envs} is not divisible by "
-                         f"algo.workers={workers}")
-    factory = functools.partial(make_env, cfg, num_envs=cfg.algo.num_envs // workers)
-    collector = MultiSyncCollector([factory] * workers, actor,
-                                   frames_per_batch=frames_per_batch, total_frames=total_frames,
-                                   auto_register_policy_transforms=False)
-    collector.set_seed(cfg.seed)
-    return collector
-
-
 def log_trajectory(mcap: McapLog, iteration: int, batch, dt: float, env_index: int = 0) -> None:
     """Record one robot's path through the batch (base pose, joints, goals) to MCAP."""
-    nxt = batch["next"][env_index]
+    nxt = batch["next"][env_index].cpu()
     proprio = nxt[keys.PROPRIO]
     num_actions = batch["action"].shape[-1]
     mcap.log_trajectory(

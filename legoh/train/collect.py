@@ -1,0 +1,162 @@
+"""Where the envs step and where the learner runs: collectors and devices.
+
+Every training stage asks this module for its collector, so the same loop runs with the
+envs in its own process (``collector=sync``), in local worker processes
+(``collector=sync collector.workers=K``: torchrl's MultiSyncCollector) or in Ray actors on
+this machine or a cluster (``collector=ray collector.workers=K``: torchrl's RayCollector).
+The learner stays in the main process on ``device``; after each update the trainer calls
+``sync_weights`` so every worker acts with the new policy on the next batch.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import torch
+from omegaconf import DictConfig
+from torchrl.collectors import BaseCollector, Collector, MultiSyncCollector
+from torchrl.envs import EnvBase
+
+ENV_DEVICE = torch.device("cpu")  # MuJoCo steps on the CPU, whatever the learner uses
+GIB = 1024**3
+
+
+def policy_device(cfg: DictConfig) -> torch.device:
+    """The learner's device from ``cfg.device``: ``cpu``, ``cuda`` (or ``cuda:N``), ``auto``.
+
+    ``auto`` picks the GPU when there is one. Asking for CUDA on a machine without one is
+    an error, not a silent fall-back to the CPU.
+    """
+    name = str(cfg.device)
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    try:
+        device = torch.device(name)
+    except RuntimeError as err:
+        raise ValueError(f"device={name!r} is not a device; use cpu, cuda, cuda:N or auto"
+                         ) from err
+    if device.type == "cuda" and not torch.cuda.is_available():
+        raise RuntimeError(f"device={name} was asked for, but torch sees no CUDA GPU here "
+                           f"(torch {torch.__version__}); use device=cpu or device=auto")
+    if device.type not in ("cpu", "cuda"):
+        raise ValueError(f"device={name!r}: legoh runs on cpu or cuda")
+    return device
+
+
+def worker_policy_device(cfg: DictConfig) -> torch.device:
+    """Where collector workers run the policy: ``collector.policy_device``, else the learner's."""
+    name = cfg.collector.policy_device
+    if name is None:
+        return policy_device(cfg)
+    return policy_device(DictConfig({"device": name}))
+
+
+def envs_per_worker(cfg: DictConfig) -> int:
+    """``algo.num_envs / collector.workers``; refuses a split that leaves envs over."""
+    workers, num_envs = int(cfg.collector.workers), int(cfg.algo.num_envs)
+    if workers < 1:
+        raise ValueError(f"collector.workers={workers}: need at least one worker")
+    if num_envs % workers:
+        raise ValueError(f"algo.num_envs={num_envs} is not divisible by "
+                         f"collector.workers={workers}: each worker steps the same number of "
+                         f"envs")
+    return num_envs // workers
+
+
+def make_collector(cfg: DictConfig, make_env_fn: Callable[[int], EnvBase], policy,
+                   frames_per_batch: int, total_frames: int, env: EnvBase | None = None
+                   ) -> BaseCollector:
+    """torchrl collector per ``cfg.collector``.
+
+    ``make_env_fn(num_envs)`` builds one env copy; it must pickle (a functools.partial of a
+    module-level function), since workers build their own. ``env``: an already built env
+    with ``algo.num_envs`` envs for the in-process case (the trainer keeps a handle on it for
+    the curriculum state); with workers the curriculum lives in them. Workers split
+    ``algo.num_envs`` evenly. Each batch reshapes to (envs, time) with
+    ``batch.reshape(-1, batch.shape[-1])`` and may sit on the CPU: the trainer moves it to
+    ``policy_device(cfg)``.
+    """
+    per_worker = envs_per_worker(cfg)
+    workers = int(cfg.collector.workers)
+    if frames_per_batch % (per_worker * workers):
+        raise ValueError(f"frames_per_batch={frames_per_batch} is not a whole number of steps "
+                         f"of algo.num_envs={cfg.algo.num_envs} envs")
+    kind = cfg.collector.name
+    if kind == "sync":
+        return _make_local(cfg, make_env_fn, policy, frames_per_batch, total_frames, env,
+                           per_worker)
+    if kind == "ray":
+        return _make_ray(cfg, make_env_fn, policy, frames_per_batch, total_frames, per_worker)
+    raise ValueError(f"unknown collector {kind!r}; choose collector=sync or collector=ray")
+
+
+def sync_weights(collector: BaseCollector) -> None:
+    """Send the learner's current policy weights to every worker (after each update).
+
+    In-process the collector acts with the learner's own modules, so there is nothing to
+    send; local workers and Ray actors each hold a copy that this refreshes.
+    """
+    if isinstance(collector, Collector):
+        return
+    collector.update_policy_weights_()
+
+
+def _make_local(cfg, make_env_fn, policy, frames_per_batch, total_frames, env, per_worker
+                ) -> BaseCollector:
+    devices = {"env_device": ENV_DEVICE, "policy_device": worker_policy_device(cfg)}
+    if cfg.collector.workers == 1:
+        if env is None:
+            env = make_env_fn(per_worker)
+        return Collector(env, policy, frames_per_batch=frames_per_batch,
+                         total_frames=total_frames,
+                         auto_register_policy_transforms=False,  # the policies are stateless
+                         **devices)
+    factory = _WorkerEnv(make_env_fn, per_worker)
+    collector = MultiSyncCollector([factory] * cfg.collector.workers, policy,
+                                   frames_per_batch=frames_per_batch,
+                                   total_frames=total_frames,
+                                   auto_register_policy_transforms=False, **devices)
+    collector.set_seed(cfg.seed)  # each worker's envs seeded apart
+    return collector
+
+
+def _make_ray(cfg, make_env_fn, policy, frames_per_batch, total_frames, per_worker
+              ) -> BaseCollector:
+    try:
+        from torchrl.collectors.distributed import RayCollector
+    except ImportError as err:  # pragma: no cover - torchrl always ships it
+        raise ImportError("collector=ray needs torchrl's RayCollector") from err
+    import importlib.util
+
+    if importlib.util.find_spec("ray") is None:
+        raise ImportError("collector=ray needs Ray: pip install -e '.[cluster]' "
+                          "(or pip install ray)")
+    ray_cfg = cfg.collector
+    init = {key: value for key, value in ray_cfg.init.items() if value is not None}
+    remote = {"num_cpus": ray_cfg.cpus_per_worker,
+              "num_gpus": ray_cfg.gpus_per_worker or None,
+              "memory": int(ray_cfg.memory_per_worker * GIB)}
+    factory = _WorkerEnv(make_env_fn, per_worker)
+    collector = RayCollector(
+        [factory] * ray_cfg.workers, policy,
+        frames_per_batch=frames_per_batch, total_frames=total_frames,
+        env_device=ENV_DEVICE, policy_device=worker_policy_device(cfg),
+        storing_device=ENV_DEVICE,
+        collector_kwargs={"auto_register_policy_transforms": False},
+        sync=True,  # one batch from every worker per iteration, stacked
+        ray_init_config=init, remote_configs=remote)
+    # torchrl defers the first weight transfer to the first update: do it before collecting
+    collector.update_policy_weights_()
+    collector.set_seed(cfg.seed)
+    return collector
+
+
+class _WorkerEnv:
+    """``make_env_fn(num_envs)`` as the zero-argument factory a remote collector calls."""
+
+    def __init__(self, make_env_fn: Callable[[int], EnvBase], num_envs: int) -> None:
+        self.make_env_fn = make_env_fn
+        self.num_envs = num_envs
+
+    def __call__(self) -> EnvBase:
+        return self.make_env_fn(self.num_envs)

@@ -1,0 +1,113 @@
+"""Collectors: envs in the learner's process, in local processes, in Ray actors.
+
+Each kind must yield (envs, time) batches, act with the learner's current weights after
+``sync_weights``, and carry a training iteration. The Ray tests start a local Ray cluster of
+2 CPUs (loopback only) once for the module.
+"""
+
+import functools
+from pathlib import Path
+
+import pytest
+import torch
+
+from legoh import keys
+from legoh.envs.hiking_env import make_env
+from legoh.modules.actor_critic import LOC
+from legoh.train.collect import envs_per_worker, make_collector, sync_weights
+from legoh.train.oracle import build_oracle, train_oracle
+from tests.conftest import compose_config
+from tests.test_train_oracle import TINY
+
+STEPS = 8  # TINY's algo.steps_per_env
+NUM_ENVS = 4  # TINY's algo.num_envs
+
+
+@pytest.fixture(scope="module")
+def ray_cluster():
+    """A local Ray cluster limited to 2 CPUs, shut down after the module's tests."""
+    ray = pytest.importorskip("ray", reason="ray is not installed (pip install -e '.[dev]')")
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    yield ray
+    ray.shutdown()
+
+
+def collect_twice(*overrides: str) -> None:
+    """Two batches: each (envs, time) and acted with the learner's weights of the moment.
+
+    Between them the learner's actor changes; after ``sync_weights`` the workers' action
+    means must equal the changed actor's on the observations they saw.
+    """
+    cfg = compose_config(*TINY, *overrides)
+    factory = functools.partial(make_env, cfg)
+    probe = factory(1)
+    torch.manual_seed(0)
+    _, actor, _, _ = build_oracle(probe, cfg)
+    probe.close()
+    frames = NUM_ENVS * STEPS
+    collector = make_collector(cfg, factory, actor, frames, 2 * frames)
+    try:
+        for i, batch in enumerate(collector):
+            assert batch.numel() == frames
+            batch = batch.reshape(-1, batch.shape[-1])
+            assert batch.shape == (NUM_ENVS, STEPS)
+            assert batch[keys.PROPRIO].shape[:2] == (NUM_ENVS, STEPS)
+            with torch.no_grad():
+                expected = actor(batch.select(*actor.in_keys).clone()).get(LOC)
+            torch.testing.assert_close(batch.get(LOC), expected, rtol=1e-4, atol=1e-5)
+            if i == 0:  # the learner moves on: perturb every weight, then send them out
+                with torch.no_grad():
+                    for param in actor.parameters():
+                        param.add_(0.05 * torch.randn_like(param))
+                sync_weights(collector)
+    finally:
+        collector.shutdown()
+
+
+def test_in_process_collector_acts_with_the_learners_actor() -> None:
+    collect_twice()
+
+
+def test_two_local_processes_get_the_new_weights() -> None:
+    collect_twice("collector.workers=2")
+
+
+def test_two_ray_workers_get_the_new_weights(ray_cluster) -> None:
+    collect_twice("collector=ray", "collector.workers=2")
+
+
+def test_a_training_iteration_runs_on_two_ray_workers(ray_cluster, tmp_path: Path) -> None:
+    cfg = compose_config(*TINY, "collector=ray", "collector.workers=2", "algo.total_frames=64")
+    run = train_oracle(cfg, tmp_path)
+    assert run.iterations == 2
+    rows = run.csv.read_text().strip().splitlines()
+    assert len(rows) == 3  # header + 2 iterations
+
+
+def test_two_collector_processes_feed_one_learner(tmp_path: Path) -> None:
+    cfg = compose_config(*TINY, "collector.workers=2", "algo.total_frames=64")
+    run = train_oracle(cfg, tmp_path)
+    assert run.iterations == 2
+    assert len(run.csv.read_text().strip().splitlines()) == 3
+
+
+def test_workers_must_divide_the_envs(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="divisible"):
+        train_oracle(compose_config(*TINY, "collector.workers=3", "algo.total_frames=64"),
+                     tmp_path)
+
+
+def test_envs_per_worker() -> None:
+    assert envs_per_worker(compose_config("algo.num_envs=64", "collector.workers=4")) == 16
+    assert envs_per_worker(compose_config("algo.num_envs=64")) == 64
+    with pytest.raises(ValueError, match="at least one"):
+        envs_per_worker(compose_config("collector.workers=0"))
+
+
+def test_ray_config_composes() -> None:
+    cfg = compose_config("collector=ray", "collector.workers=8", "collector.init.address=auto",
+                         "collector.cpus_per_worker=4")
+    assert (cfg.collector.name, cfg.collector.workers) == ("ray", 8)
+    assert cfg.collector.init.address == "auto" and cfg.collector.cpus_per_worker == 4
+    assert cfg.collector.policy_device == "cpu"  # workers may have no GPU
+    assert compose_config().collector.name == "sync"
