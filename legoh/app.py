@@ -21,6 +21,8 @@ def run(cfg: DictConfig) -> None:
         from legoh.eval import cli
 
         cli.main(cfg, out_dir)
+    elif mode == Mode.export:
+        export(cfg, out_dir)
     else:
         train_and_evaluate(cfg, out_dir)
 
@@ -43,6 +45,11 @@ def train_and_evaluate(cfg: DictConfig, out_dir: Path) -> None:
         result = evaluate(cfg, run.student.policy, out_dir, label=cfg.algo.name,
                           env_fn=student_eval_env_fn(cfg, run.student))
         print(f"[legoh] oracle used:       {run.oracle}")
+        from legoh.export import export_student
+
+        deployed = export_student(run.student, out_dir / "policy.ts",
+                                  meta=export_meta(cfg))
+        print(f"[legoh] deployable policy: {deployed} (TorchScript, docs/unified.md)")
     print(Path(result["paths"]["markdown"]).read_text())
     print(f"[legoh] checkpoint:        {run.checkpoint}")
     print(f"[legoh] training log:      {run.csv} (CSV), {run.mcap} (MCAP)")
@@ -50,3 +57,27 @@ def train_and_evaluate(cfg: DictConfig, out_dir: Path) -> None:
     print(f"[legoh] learning curve:    {curve}")
     for name, path in result["paths"].items():
         print(f"[legoh] benchmark {name + ':':13s} {path}")
+
+
+def export_meta(cfg: DictConfig) -> dict:
+    """What a deployment needs besides the network: robot, action scale, depth range."""
+    return {"robot": cfg.robot.name, "action_scale": float(cfg.robot.action_scale),
+            "action_clip": float(cfg.env.action_clip), "policy_hz": 1.0 / (
+                cfg.sim.dt * cfg.sim.decimation),
+            "depth_every": int(cfg.env.depth.every), "algo": cfg.algo.name}
+
+
+def export(cfg: DictConfig, out_dir: Path) -> Path:
+    """``mode=export``: the student of ``checkpoint`` as one TorchScript file."""
+    from legoh.eval.cli import build_student_policy
+    from legoh.export import export_student
+
+    if cfg.algo.name == "oracle":
+        raise ValueError("mode=export deploys a depth student (algo=unified, ep_h, ...); "
+                         "the oracle needs privileged inputs a robot does not have")
+    if not cfg.checkpoint:
+        raise ValueError("mode=export needs checkpoint=<path to a stage-2 checkpoint>")
+    student, _ = build_student_policy(cfg, cfg.checkpoint)
+    path = export_student(student, out_dir / "policy.ts", meta=export_meta(cfg))
+    print(f"[legoh] exported {cfg.checkpoint} to {path}")
+    return path

@@ -49,7 +49,7 @@ def test_run_config_seeds_runs_and_checks_levels() -> None:
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory: pytest.TempPathFactory) -> tuple:
     cfg = compose_config(*TINY)
-    actor = build_actor(cfg)
+    actor, _ = build_actor(cfg)
     out = tmp_path_factory.mktemp("eval")
     return cfg, actor, evaluate(cfg, actor, out, label="untrained", progress=False)
 
@@ -100,7 +100,7 @@ def test_cli_loads_the_checkpoint_actor(tiny: tuple, tmp_path: Path) -> None:
     env.close()
     path = save_checkpoint(tmp_path / "oracle.pt", make_payload(
         models={"actor": actor}, iteration=1, robot=cfg.robot.name, layout=layout))
-    loaded = build_actor(cfg, str(path))
+    loaded, _ = build_actor(cfg, str(path))
     for a, b in zip(actor.state_dict().values(), loaded.state_dict().values(), strict=True):
         assert torch.equal(a, b)
     with pytest.raises(CheckpointError, match="robot"):

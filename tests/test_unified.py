@@ -11,10 +11,13 @@ import torch
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
+from legoh.app import export
 from legoh.checkpoint import CheckpointError, load_checkpoint
 from legoh.config import validate
 from legoh.eval.benchmark import evaluate
+from legoh.eval.cli import build_actor
 from legoh.eval.study import STUDIES, study_table
+from legoh.export import load_exported
 from legoh.train.unified import (
     ensure_oracle,
     oracle_artefact_dir,
@@ -62,6 +65,15 @@ def test_one_dagger_iteration_then_resume(artefacts, tmp_path, algo):
     assert resumed.iterations == 3
     state = load_checkpoint(run.checkpoint)
     assert state["extra"]["student"] == cfg.algo.student
+    # mode=export and mode=eval rebuild the student from its checkpoint
+    ckpt = OmegaConf.merge(cfg, {"checkpoint": str(resumed.checkpoint)})
+    module, meta = load_exported(export(ckpt, tmp_path))
+    assert meta["algo"] == algo and meta["held_dim"] > 0
+    policy, env_fn = build_actor(ckpt, ckpt.checkpoint)
+    for a, b in zip(policy.locomotion.state_dict().values(),
+                    resumed.student.locomotion.state_dict().values(), strict=True):
+        assert torch.equal(a, b)
+    assert env_fn(0).observation_spec["obs"]["proprio"].shape[-1] == meta["proprio"]
 
 
 def test_checkpoint_of_another_student_is_refused(artefacts, tmp_path):

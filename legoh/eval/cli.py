@@ -13,8 +13,11 @@ from legoh.train.oracle import build_oracle
 
 
 def build_actor(cfg: DictConfig, checkpoint: str | None = None):
-    """The oracle actor sized from the evaluation env's specs, with the weights of
-    ``checkpoint`` (its robot and observation layout must match this config)."""
+    """The policy of ``cfg.algo`` with the weights of ``checkpoint`` (its robot, observation
+    layout and, for a student, its student type must match this config), and the env
+    factory the benchmark needs for it (None: the plain evaluation env)."""
+    if cfg.algo.name != "oracle":
+        return build_student_policy(cfg, checkpoint)
     env = make_eval_env(OmegaConf.merge(cfg, {"eval": {"robots": 1}}))
     try:
         dims, actor, _, _ = build_oracle(env, cfg)
@@ -24,7 +27,26 @@ def build_actor(cfg: DictConfig, checkpoint: str | None = None):
         payload = load_checkpoint(checkpoint, expect_robot=cfg.robot.name,
                                   expect_layout=dims.as_layout())
         actor.load_state_dict(payload["models"]["actor"])
-    return actor
+    return actor, None
+
+
+def build_student_policy(cfg: DictConfig, checkpoint: str | None = None):
+    """A stage-2 student (``cfg.algo.student``) and its evaluation env factory."""
+    from legoh.train.unified import (
+        build_student,
+        load_student,
+        make_student_env,
+        student_eval_env_fn,
+    )
+
+    probe = make_student_env(cfg, 1, ((1,), 1))
+    try:
+        student = build_student(cfg, probe)
+    finally:
+        probe.close()
+    if checkpoint:
+        load_student(cfg, checkpoint, student)
+    return student, student_eval_env_fn(cfg, student)
 
 
 def main(cfg: DictConfig, out_dir: str | Path) -> dict:
@@ -35,9 +57,10 @@ def main(cfg: DictConfig, out_dir: str | Path) -> dict:
         warnings.warn("no checkpoint given (checkpoint=<path>): evaluating an untrained actor",
                       stacklevel=2)
         print("[legoh] WARNING: no checkpoint given, evaluating an untrained actor")
-    actor = build_actor(cfg, checkpoint)
+    policy, env_fn = build_actor(cfg, checkpoint)
+    actor = policy.policy if env_fn is not None else policy
     label = Path(checkpoint).stem if checkpoint else "untrained"
-    result = evaluate(cfg, actor, out_dir, label=label)
+    result = evaluate(cfg, actor, out_dir, label=label, env_fn=env_fn)
     print(Path(result["paths"]["markdown"]).read_text(encoding="utf-8"))
     print(f"[legoh] evaluation written to {Path(out_dir).resolve()} "
           f"({result['wall_s']:.0f} s, {result['steps']} policy steps)")
