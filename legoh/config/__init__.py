@@ -31,6 +31,7 @@ class Mode(Enum):
     train = "train"
     eval = "eval"
     stand = "stand"
+    export = "export"
 
 
 @dataclass
@@ -54,7 +55,9 @@ class Config:
     collector: Any = MISSING  # sync (this machine) | ray (Ray actors, a cluster)
     sim: SimConfig = field(default_factory=SimConfig)
     env: EnvConfig = field(default_factory=EnvConfig)
-    mode: Mode = Mode.train  # train (then evaluate), eval (a checkpoint), stand (a picture)
+    # train (then evaluate), eval (a checkpoint), stand (a picture), export (a student to
+    # one TorchScript file)
+    mode: Mode = Mode.train
     seed: int = 0
     device: str = "cpu"  # learner and policy: cpu | cuda | cuda:N | auto (envs: CPU)
     resume: str | None = None  # train: a checkpoint to continue from (a killed run resumes)
