@@ -62,7 +62,7 @@ class UnifiedConfig(OracleConfig):
     lr: float = 5e-4
     vae_steps: int = 4  # prior updates on the oracle's actions per iteration (alternating)
     vae_lr: float = 1e-3
-    bptt_steps: int = 24  # steps unrolled through the recurrent core for the imitation losses
+    distill_epochs: int = 2  # passes of the imitation losses over each batch (in minibatches)
     oracle_checkpoint: str | None = None  # None: train one first (oracle_frames), or reuse it
     oracle_frames: int = 200_000  # budget of the oracle trained when none is given
     depth_far: float | None = None  # m: clip depth nearer than the camera's far plane (EP-H: 2)

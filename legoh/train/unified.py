@@ -228,9 +228,25 @@ def label_with_oracle(oracle, batch) -> None:
     batch.set(keys.TEACHER_LATENT, out.get(keys.TEACHER_LATENT))
 
 
+def distill(student: Student, batch, cfg: DictConfig, optim, prior_loss,
+            gen: torch.Generator) -> dict:
+    """``algo.distill_epochs`` passes over the batch in ``algo.minibatches`` groups of envs
+    (whole sequences: the recurrent core runs through time); logged values are means."""
+    algo = cfg.algo
+    n = batch.shape[0]
+    groups = max(1, min(algo.minibatches, n))
+    sums: dict[str, float] = {}
+    for _ in range(algo.distill_epochs):
+        for rows in torch.randperm(n, generator=gen).chunk(groups):
+            out = distill_step(student, batch[rows.to(batch.device)], cfg, optim, prior_loss)
+            for key, value in out.items():
+                sums[key] = sums.get(key, 0.0) + value / (algo.distill_epochs * groups)
+    return sums
+
+
 def distill_step(student: Student, batch, cfg: DictConfig, optim, prior_loss) -> dict:
-    """One gradient step of the imitation losses over the whole (N, T) batch, the
-    navigation module re-run through time (truncated BPTT over the batch's T steps)."""
+    """One gradient step of the imitation losses over a (n, T) batch, the navigation
+    module re-run through time (truncated BPTT over the batch's T steps)."""
     nav_out = unroll(student.navigation, batch)
     head_in = nav_out.clone(recurse=False)
     head_in.set(keys.PROPRIO, batch.get(keys.PROPRIO))
@@ -254,13 +270,14 @@ def train_student(cfg: DictConfig, out_dir: Path, resume: str | None = None) -> 
 
 
 def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None) -> StudentRun:
-    from legoh.train.collect import make_collector
+    from legoh.train.collect import make_collector, policy_device, sync_weights
 
     algo = cfg.algo
     out_dir.mkdir(parents=True, exist_ok=True)
     oracle_path = ensure_oracle(cfg)
     torch.manual_seed(cfg.seed)
     gen = torch.Generator().manual_seed(cfg.seed)
+    device = policy_device(cfg)  # the learner's; the envs step on the CPU
 
     probe = make_student_env(cfg, 1, ((1,), 1))  # sizes only
     student = build_student(cfg, probe)
@@ -269,6 +286,9 @@ def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None) -> Studen
     env = make_student_env(cfg, algo.num_envs, shapes)
     oracle, critic = load_oracle(cfg, oracle_path, env)
     vae, vae_optim, prior_loss = make_prior(cfg, env.action_spec.shape[-1])
+    for module in (*student.modules().values(), oracle, critic, vae):
+        if module is not None:
+            module.to(device)
 
     loss, gae = make_ppo(student.locomotion, critic, algo)
     ppo_optim = torch.optim.Adam(loss.parameters(), lr=algo.lr)
@@ -315,19 +335,28 @@ def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None) -> Studen
     bar = tqdm(total=iterations, initial=start, desc=f"{algo.name} ({algo.student})", unit="it")
     it, tick = start, time.perf_counter()
     for batch in collector:
-        batch = batch.reshape(-1, batch.shape[-1])  # (envs, time)
+        clock = {"collect": time.perf_counter()}
+        batch = batch.reshape(-1, batch.shape[-1]).to(device)  # (envs, time) on the learner
         label_with_oracle(oracle, batch)
         stats = {}
         if vae is not None:
-            stats.update(train_prior(vae, vae_optim, batch.get(keys.TEACHER_ACTION).reshape(
-                -1, batch.get(keys.TEACHER_ACTION).shape[-1]), cfg, gen))
+            teacher = batch.get(keys.TEACHER_ACTION)
+            stats.update(train_prior(vae, vae_optim, teacher.reshape(-1, teacher.shape[-1]),
+                                     cfg, gen))
+        clock["prior"] = time.perf_counter()
         if algo.ppo and algo.weights.w1:
             with torch.no_grad():
                 gae(batch)
             stats.update(ppo_update(loss, ppo_optim, batch.reshape(-1), algo, gen,
                                     scale=algo.weights.w1))
-        stats.update(distill_step(student, batch, cfg, distill_optim, prior_loss))
+        clock["ppo"] = time.perf_counter()
+        stats.update(distill(student, batch, cfg, distill_optim, prior_loss, gen))
+        clock["distill"] = time.perf_counter()
+        sync_weights(collector)  # the workers act with the updated student from the next batch
         stats.update(batch_scalars(batch))
+        marks = [tick, *clock.values()]
+        stats.update({f"time/{k}": t1 - t0 for k, t0, t1 in zip(clock, marks[:-1], marks[1:],
+                                                                 strict=True)})
         now = time.perf_counter()
         stats["frames_per_s"] = frames_per_batch / (now - tick)
         tick = now
@@ -338,8 +367,6 @@ def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None) -> Studen
             log_trajectory(mcap, it, batch, env.dt)
         if it % algo.checkpoint_every == 0 or it == iterations:
             checkpoint(it)
-        if hasattr(collector, "update_policy_weights_"):
-            collector.update_policy_weights_()
         bar.update(1)
         bar.set_postfix(fps=f"{stats['frames_per_s']:.0f}", reward=f"{stats['reward']:.3f}",
                         imit=f"{stats.get('distill/loss_action', float('nan')):.3f}",
