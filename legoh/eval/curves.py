@@ -19,6 +19,14 @@ PANELS = (  # (column, title)
     ("loss_critic", "critic loss"),
     ("level_mean", "mean terrain level"),
 )
+STUDENT_PANELS = (  # stage 2: what the student learns from the oracle
+    ("reward", "mean reward per step"),
+    ("progress", "trail progress (fraction)"),
+    ("episode_frames", "frames per finished episode"),
+    ("distill/loss_action", "action imitation loss"),
+    ("distill/loss_latent", "latent loss (z_uni vs z_tea)"),
+    ("distill/loss_near_goals", "near-goal loss"),
+)
 
 
 def read_columns(path: str | Path) -> dict[str, np.ndarray]:
@@ -29,15 +37,16 @@ def read_columns(path: str | Path) -> dict[str, np.ndarray]:
             for key in (rows[0].keys() if rows else [])}
 
 
-def plot_learning_curve(csv_path: str | Path, out: str | Path, title: str = "oracle PPO"
-                        ) -> Path:
-    """Six panels against environment frames; returns the PNG path."""
+def plot_learning_curve(csv_path: str | Path, out: str | Path, title: str = "oracle PPO",
+                        panels=PANELS) -> Path:
+    """Six panels (``(column, title)``; missing columns stay empty) against iterations;
+    returns the PNG path."""
     cols = read_columns(csv_path)
     out = Path(out)
     fig, axes = plt.subplots(2, 3, figsize=(12, 6))
     if cols:
         x = cols["iteration"]
-        for ax, (key, name) in zip(axes.ravel(), PANELS, strict=True):
+        for ax, (key, name) in zip(axes.ravel(), panels, strict=True):
             if key in cols:
                 ax.plot(x, cols[key], lw=1.2)
             ax.set_title(name, fontsize=10)
