@@ -25,6 +25,10 @@ class OracleConfig:
     adaptation_lr: float = 1e-3  # the adaptation module's own optimiser
     checkpoint_every: int = 20  # iterations between checkpoints (and one at the end)
     trajectory_every: int = 10  # iterations between trajectories logged to MCAP
+    # torch threads of the learner (MuJoCo keeps its own pool). On 2 busy cores 1 thread ran
+    # steadier than 2: the student loop 39-525 frames/s with 2, ~360 with 1; the oracle loop
+    # ~53 with 2 vs ~850 with 1 (experiments/results/bench_collect.md). Raise it on a big CPU.
+    torch_threads: int = 1
 
 
 @dataclass
@@ -66,7 +70,4 @@ class UnifiedConfig(OracleConfig):
     oracle_checkpoint: str | None = None  # None: train one first (oracle_frames), or reuse it
     oracle_frames: int = 200_000  # budget of the oracle trained when none is given
     depth_far: float | None = None  # m: clip depth nearer than the camera's far plane (EP-H: 2)
-    # torch threads of the learner: on 2 busy cores 1 thread ran steadier (~360 frames/s)
-    # than 2 (39-525 frames/s, same run length); MuJoCo keeps its own thread pool
-    torch_threads: int = 1
     weights: LossWeights = field(default_factory=LossWeights)

@@ -71,6 +71,13 @@ def batch_scalars(batch) -> dict[str, float]:
 
 def train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None = None) -> OracleRun:
     """Train the oracle for ``cfg.algo.total_frames`` env steps; returns the trained actor."""
+    from legoh.eval.benchmark import torch_threads
+
+    with torch_threads(cfg.algo.torch_threads):
+        return _train_oracle(cfg, out_dir, resume)
+
+
+def _train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None) -> OracleRun:
     algo = cfg.algo
     out_dir.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(cfg.seed)
