@@ -29,9 +29,8 @@ os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco is imported: headless
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
-from mujoco import rollout  # noqa: E402
-
 from hydra import compose, initialize_config_dir  # noqa: E402
+from mujoco import rollout  # noqa: E402
 
 from legoh.config import register_configs  # noqa: E402
 from legoh.envs.hiking_env import make_env  # noqa: E402
@@ -229,7 +228,8 @@ def write_results(result: dict, quick: bool) -> None:
         "# HikingEnv speed (policy steps/s, 50 Hz policy, 4 substeps)", "",
         f"RandomMix level {result['level']}, {result['machine']['cpus']} CPUs, "
         f"MuJoCo {result['machine']['mujoco']}. Ceiling: `mujoco.rollout` of the same model, "
-        "N, substeps and threads. Depth: 32 x 24 ray-cast frame every 5 policy steps (the default).", "",
+        "N, substeps and threads. Depth: 32 x 24 ray-cast frame every 5 policy steps "
+        "(the default).", "",
         "| robot | N | ceiling | env | env / ceiling | env + depth | (env+depth) / ceiling "
         "| depth@10Hz / physics | EGL / ray cast (per frame) |",
         "|---|---|---|---|---|---|---|---|---|",
