@@ -88,9 +88,33 @@ def study_table(sweep_dir: str | Path, out_dir: str | Path, study: str,
         rate = np.nanmedian([j["frames_per_s"] for j in jobs])
         lines.append(f"| {label} | {len(jobs)} | {rate:.0f} |")
     paths = {"markdown": out / "table.md", "csv": out / "table.csv",
-             "summary": out / "summary.json"}
+             "summary": out / "summary.json", "plot": plot_study(rows, out / "table.png", title)}
     paths["markdown"].write_text("\n".join(lines) + "\n", encoding="utf-8")
     write_csv(paths["csv"], rows, label=group_by)
     paths["summary"].write_text(json.dumps({"study": study, "group_by": group_by,
                                             "groups": groups}, indent=2), encoding="utf-8")
     return paths
+
+
+def plot_study(rows, path: Path, title: str, metrics=("TR", "TC", "TTF", "SR")) -> Path:
+    """Bars of mean ± std per method, one panel per metric."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    labels = list(rows)
+    fig, axes = plt.subplots(1, len(metrics), figsize=(3.2 * len(metrics), 3.2))
+    for ax, m in zip(axes, metrics, strict=True):
+        mean = [rows[k][m][0] for k in labels]
+        std = [rows[k][m][1] for k in labels]
+        ax.bar(range(len(labels)), np.nan_to_num(mean), yerr=np.nan_to_num(std), capsize=4,
+               color=[f"C{i}" for i in range(len(labels))])
+        ax.set_xticks(range(len(labels)), labels, rotation=20, fontsize=8)
+        ax.set_title(column_title(m), fontsize=10)
+        ax.grid(axis="y", alpha=0.3)
+    fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path
