@@ -50,7 +50,8 @@ class HikingGymEnv(gym.Env):
         return cls(make_env(cfg, num_envs=1, evaluation=evaluation, **env_overrides))
 
     def _obs(self, td: TensorDictBase) -> dict[str, np.ndarray]:
-        return {k: td["obs", k][0].numpy().copy() for k in self.obs_keys}
+        # float32 throughout, as the Box spaces say (the depth_fresh flag included)
+        return {k: td["obs", k][0].numpy().astype(np.float32) for k in self.obs_keys}
 
     def _info(self, td: TensorDictBase) -> dict[str, Any]:
         values = {k: td[keys.INFO, k][0] for k in td[keys.INFO].keys()
