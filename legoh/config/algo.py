@@ -66,6 +66,9 @@ class UnifiedConfig(OracleConfig):
     lr: float = 5e-4
     vae_steps: int = 4  # prior updates on the oracle's actions per iteration (alternating)
     vae_lr: float = 1e-3
+    # HLM triplet margin (cosine distance; docs/hlm.md). The masked negative of an exact copy
+    # of the oracle's action lands ~0.03-0.12 away, so with 0.2 the term never reaches zero
+    hlm_margin: float = 0.2
     distill_epochs: int = 2  # passes of the imitation losses over each batch (in minibatches)
     oracle_checkpoint: str | None = None  # None: train one first (oracle_frames), or reuse it
     oracle_frames: int = 200_000  # budget of the oracle trained when none is given

@@ -182,16 +182,17 @@ def make_prior(cfg: DictConfig, action_dim: int):
     optim = torch.optim.Adam(vae.parameters(), lr=cfg.algo.vae_lr)
     w = cfg.algo.weights
     bound = cfg.env.action_clip
-    loss = functools.partial(_prior_loss, vae, bound, w.c_mt, w.c_ms, prior)
+    loss = functools.partial(_prior_loss, vae, bound, w.c_mt, w.c_ms, cfg.algo.hlm_margin,
+                             prior)
     return vae, optim, loss
 
 
-def _prior_loss(vae, bound, c_mt, c_ms, prior, teacher, student):
+def _prior_loss(vae, bound, c_mt, c_ms, margin, prior, teacher, student):
     """HLM's terms (masked VAE); with the vanilla VAE only the latent similarity remains:
     a vanilla VAE has no masked negative, so the triplet term has nothing to push away."""
     from legoh.objectives.hlm import hlm_loss
 
-    out = hlm_loss(vae, teacher, student, bound, c_mt=c_mt, c_ms=c_ms)
+    out = hlm_loss(vae, teacher, student, bound, c_mt=c_mt, c_ms=c_ms, margin=margin)
     if prior == "vae":
         out = out.exclude(*[k for k in out.keys() if "triplet" in k])
     return out
