@@ -42,7 +42,10 @@ def main() -> None:
         if args.frames:
             cmd.append(f"algo.total_frames={args.frames}")
         if args.oracle_frames:
-            cmd.append(f"++algo.oracle_frames={args.oracle_frames}")
+            if args.study == "benchmark":  # its oracle jobs have no stage-1 budget key
+                parser.error("--oracle-frames does not apply to the benchmark study (it trains "
+                             "the oracle as one of its methods); use --frames")
+            cmd.append(f"algo.oracle_frames={args.oracle_frames}")
         if args.seeds:
             cmd.append(f"seed={args.seeds}")
         if args.trail:
