@@ -72,5 +72,6 @@ class UnifiedConfig(OracleConfig):
     distill_epochs: int = 2  # passes of the imitation losses over each batch (in minibatches)
     oracle_checkpoint: str | None = None  # None: train one first (oracle_frames), or reuse it
     oracle_frames: int = 200_000  # budget of the oracle trained when none is given
+    pn_distance: float = 1.0  # weight of Table 6's point-navigation term (this stage only)
     depth_far: float | None = None  # m: clip depth nearer than the camera's far plane (EP-H: 2)
     weights: LossWeights = field(default_factory=LossWeights)

@@ -108,15 +108,12 @@ def load_oracle(cfg: DictConfig, path: Path, env: EnvBase):
 def student_env_overrides(cfg: DictConfig) -> dict:
     """Env settings of stage 2: depth on (unless the student is blind), the unified
     stage's point-navigation reward (Table 6, *), the student's depth range."""
-    from legoh.config.env import DepthConfig
-
-    depth = OmegaConf.to_object(cfg.env.depth)
-    assert isinstance(depth, DepthConfig)
+    depth = OmegaConf.to_object(cfg.env.depth)  # a DepthConfig
     depth.enabled = cfg.algo.student != "rma_b"
     if cfg.algo.depth_far is not None:
         depth.far = float(cfg.algo.depth_far)
     rewards = dict(cfg.env.rewards)
-    rewards["pn_distance"] = 1.0
+    rewards["pn_distance"] = float(cfg.algo.pn_distance)
     return {"depth": depth, "rewards": rewards}
 
 
@@ -141,6 +138,7 @@ def make_student_env(cfg: DictConfig, num_envs: int, state_shapes: tuple, evalua
 
 
 def state_shapes(student: Student) -> tuple:
+    """(core state shape, held size) of a student's navigation: what its env must prime."""
     nav = student.navigation.navigator
     return tuple(nav.state_shape), int(nav.held_dim)
 
