@@ -52,6 +52,12 @@ class DepthRaycaster:
         self._cutoff_scale = 1.0 / float(self._cos.min())
         self.threads = threads or os.cpu_count() or 1
         self._pool = ThreadPoolExecutor(self.threads) if self.threads > 1 else None
+        # mj_multiRay allocates its scratch on the MjData's stack: threads sharing one MjData
+        # corrupt each other's rays (measured: identical runs gave depths 0.49 apart). Each
+        # thread casts against its own MjData, kept at the caller's pose (positions).
+        self._scratch = [mujoco.MjData(model) for _ in range(self.threads)]
+        for world in self._scratch:
+            mujoco.mj_forward(model, world)
 
     def render(self, data: mujoco.MjData, cam_pos: np.ndarray, cam_mat: np.ndarray
                ) -> np.ndarray:
@@ -60,17 +66,20 @@ class DepthRaycaster:
         vec = np.einsum("rj,nij->nri", self._dirs, cam_mat).reshape(n, -1)
         dist = np.empty((n, nray))
 
-        def cast(rows: range) -> None:
+        def cast(k: int) -> None:
+            world = self._scratch[k]
+            if not np.array_equal(world.qpos, data.qpos):  # the world moved: follow it
+                world.qpos[:] = data.qpos
+                mujoco.mj_forward(self.model, world)
             geomid = np.empty(nray, dtype=np.int32)
-            for i in rows:
-                mujoco.mj_multiRay(self.model, data, cam_pos[i], vec[i], WORLD_GROUPS, True,
+            for i in range(k, n, self.threads):
+                mujoco.mj_multiRay(self.model, world, cam_pos[i], vec[i], WORLD_GROUPS, True,
                                    -1, geomid, dist[i], None, nray, self.far * self._cutoff_scale)
 
-        chunks = [range(k, n, self.threads) for k in range(self.threads)]
         if self._pool is None:
-            cast(range(n))
+            cast(0)
         else:
-            list(self._pool.map(cast, chunks))
+            list(self._pool.map(cast, range(self.threads)))
         dist[dist < 0] = np.inf  # a miss
         return np.minimum(dist * self._cos, self.far).reshape(n, self.height, self.width)
 
