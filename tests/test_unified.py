@@ -121,3 +121,17 @@ def test_every_sweep_composes_all_its_jobs(study):
                 have = node.name if key in ("algo", "robot") else node
                 assert str(have) == value, f"{study}: {override} composed as {have}"
     assert Path(CONF_DIR, "experiment", f"{study}.yaml").is_file()
+
+
+def test_same_seed_same_training(artefacts, tmp_path):
+    """Stage 2 is reproducible on the CPU: two runs of one config log the same losses."""
+    import csv
+
+    logs = []
+    for k in range(2):
+        run = train_student(tiny("unified", artefacts), tmp_path / str(k))
+        with run.csv.open() as f:
+            logs.append([{key: row[key] for key in row if not key.startswith(("time/",
+                                                                             "frames_per_s"))}
+                         for row in csv.DictReader(f)])
+    assert logs[0] == logs[1]
