@@ -58,6 +58,12 @@ class StudentDims:
         hist, proprio = obs["proprio_history"].shape[-2:]
         return cls(proprio=proprio, history=hist, depth=depth, depth_far=depth_far)
 
+    def require_depth(self, student: str) -> tuple[int, int, int]:
+        """(frames, H, W), or a clear error when the env gives no depth."""
+        if self.depth is None:
+            raise ValueError(f"{student} needs depth frames: the env has env.depth.enabled=False")
+        return self.depth
+
     def as_layout(self) -> dict[str, tuple[int, ...]]:
         """Observation layout stored in checkpoints (a student from another robot fails)."""
         out = {"/".join(keys.PROPRIO): (self.proprio,),
@@ -109,9 +115,7 @@ class LegoHNavigator(Navigator):
         super().__init__()
         from legoh.modules.tcvit import TCViTs, tcvit_config
 
-        if dims.depth is None:
-            raise ValueError("lego_h needs depth frames: the env has env.depth.enabled=False")
-        frames, height, width = dims.depth
+        frames, height, width = dims.require_depth("lego_h")
         self.cfg = tcvit_config(preset, core=core, frames=frames, height=height, width=width)
         self.net = TCViTs(self.cfg, proprio_dim=dims.proprio)
         self.state_shape = tuple(self.net.state_shape)
@@ -156,9 +160,7 @@ class EPHNavigator(Navigator):
 
     def __init__(self, dims: StudentDims, hidden: int = 256) -> None:
         super().__init__()
-        if dims.depth is None:
-            raise ValueError("ep_h needs depth frames: the env has env.depth.enabled=False")
-        _, height, width = dims.depth
+        _, height, width = dims.require_depth("ep_h")
         # normalised depth is d / far - 0.5: the 2 m clip in those units
         self.clip = min(EP_DEPTH_RANGE / dims.depth_far, 1.0) - 0.5
         self.cnn = DepthCNN(1, height, width)
@@ -220,9 +222,7 @@ class RMAHNavigator(Navigator):
 
     def __init__(self, dims: StudentDims, num_goals: int = 3) -> None:
         super().__init__()
-        if dims.depth is None:
-            raise ValueError("rma_h needs depth frames: the env has env.depth.enabled=False")
-        frames, height, width = dims.depth
+        frames, height, width = dims.require_depth("rma_h")
         self.num_goals = num_goals
         self.cnn = DepthCNN(frames, height, width)
         self.goals = mlp(128 + 4, [128, 2 * num_goals], None)

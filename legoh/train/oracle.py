@@ -97,14 +97,7 @@ def _train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None) -> OracleR
     start = 0
     if resume:
         state = load_checkpoint(resume, expect_robot=cfg.robot.name, expect_layout=layout)
-        for name, module in models.items():
-            module.load_state_dict(state["models"][name])
-        for name, opt in optims.items():
-            opt.load_state_dict(state["optimizers"][name])
-        start = int(state["iteration"])
-        env.level[:] = np.asarray(state["curriculum"]["level"])
-        env.global_steps = int(state["curriculum"]["global_steps"])
-        restore_rng(state["rng"])
+        start = restore_training(state, models, optims, env)
         print(f"[legoh] resumed from {resume} at iteration {start}")
 
     frames_per_batch = algo.num_envs * algo.steps_per_env
@@ -143,12 +136,7 @@ def _train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None) -> OracleR
         stats["frames_per_s"] = frames_per_batch / (now - tick)
         tick = now
         it += 1
-        csv.write(it, stats)
-        mcap.log_scalars(it, stats)
-        if it % algo.trajectory_every == 0 or it == iterations:
-            log_trajectory(mcap, it, batch, env.dt)
-        if it % algo.checkpoint_every == 0 or it == iterations:
-            checkpoint(it)
+        record_iteration(it, iterations, stats, batch, algo, csv, mcap, env.dt, checkpoint)
         bar.update(1)
         bar.set_postfix(fps=f"{stats['frames_per_s']:.0f}", reward=f"{stats['reward']:.3f}",
                         ep_len=f"{stats['episode_frames'] * env.dt:.1f}s",
@@ -161,6 +149,32 @@ def _train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None) -> OracleR
         checkpoint(it)
     return OracleRun(actor=actor, checkpoint=ckpt_path, csv=csv.path, mcap=mcap.path,
                      iterations=it)
+
+
+def restore_training(state: dict, models: dict, optims: dict, env) -> int:
+    """Load a checkpoint's modules, optimisers, curriculum and RNG into a run; returns the
+    iteration to continue from."""
+    for name, module in models.items():
+        module.load_state_dict(state["models"][name])
+    for name, opt in optims.items():
+        opt.load_state_dict(state["optimizers"][name])
+    env.level[:] = np.asarray(state["curriculum"]["level"])
+    env.global_steps = int(state["curriculum"]["global_steps"])
+    restore_rng(state["rng"])
+    return int(state["iteration"])
+
+
+def record_iteration(it: int, iterations: int, stats: dict, batch, algo, csv: ScalarCSV,
+                     mcap: McapLog, dt: float, checkpoint) -> None:
+    """An iteration's scalars to CSV and MCAP; a trajectory every ``algo.trajectory_every``
+    and a checkpoint (``checkpoint(it)``) every ``algo.checkpoint_every`` iterations and
+    at the last one."""
+    csv.write(it, stats)
+    mcap.log_scalars(it, stats)
+    if it % algo.trajectory_every == 0 or it == iterations:
+        log_trajectory(mcap, it, batch, dt)
+    if it % algo.checkpoint_every == 0 or it == iterations:
+        checkpoint(it)
 
 
 def log_trajectory(mcap: McapLog, iteration: int, batch, dt: float, env_index: int = 0) -> None:

@@ -16,7 +16,6 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 import torch
 from omegaconf import DictConfig, OmegaConf
 from torchrl.envs import Compose, EnvBase, InitTracker, TensorDictPrimer, TransformedEnv
@@ -27,7 +26,6 @@ from legoh.checkpoint import (
     CheckpointError,
     load_checkpoint,
     make_payload,
-    restore_rng,
     save_checkpoint,
 )
 from legoh.config.algo import OracleConfig
@@ -37,7 +35,13 @@ from legoh.modules.actor_critic import LOC
 from legoh.modules.students import Student, StudentDims, make_student, unroll
 from legoh.objectives.distill import distillation_loss
 from legoh.objectives.ppo import make_ppo, ppo_update
-from legoh.train.oracle import batch_scalars, build_oracle, log_trajectory, train_oracle
+from legoh.train.oracle import (
+    batch_scalars,
+    build_oracle,
+    record_iteration,
+    restore_training,
+    train_oracle,
+)
 
 
 @dataclass
@@ -301,15 +305,7 @@ def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None) -> Studen
 
     start = 0
     if resume:
-        state = load_student(cfg, resume, student)
-        for name, module in models.items():
-            module.load_state_dict(state["models"][name])
-        for name, opt in optims.items():
-            opt.load_state_dict(state["optimizers"][name])
-        start = int(state["iteration"])
-        env.level[:] = np.asarray(state["curriculum"]["level"])
-        env.global_steps = int(state["curriculum"]["global_steps"])
-        restore_rng(state["rng"])
+        start = restore_training(load_student(cfg, resume, student), models, optims, env)
         print(f"[legoh] resumed from {resume} at iteration {start}")
 
     frames_per_batch = algo.num_envs * algo.steps_per_env
@@ -360,12 +356,7 @@ def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None) -> Studen
         stats["frames_per_s"] = frames_per_batch / (now - tick)
         tick = now
         it += 1
-        csv.write(it, stats)
-        mcap.log_scalars(it, stats)
-        if it % algo.trajectory_every == 0 or it == iterations:
-            log_trajectory(mcap, it, batch, env.dt)
-        if it % algo.checkpoint_every == 0 or it == iterations:
-            checkpoint(it)
+        record_iteration(it, iterations, stats, batch, algo, csv, mcap, env.dt, checkpoint)
         bar.update(1)
         bar.set_postfix(fps=f"{stats['frames_per_s']:.0f}", reward=f"{stats['reward']:.3f}",
                         imit=f"{stats.get('distill/loss_action', float('nan')):.3f}",
