@@ -10,6 +10,7 @@ PROPRIO_HISTORY = ("obs", "proprio_history")  # (10, P) oldest first
 SCANDOTS = ("obs", "scandots")  # (132,) heights on a 12 x 11 grid in the yaw frame
 PRIVILEGED = ("obs", "privileged")  # (K,) friction, mass/CoM offsets, strength, lin. vel., category
 GOAL = ("obs", "goal")  # (4,) terminus xy and middle waypoint xy, robot yaw frame, m
+COMMAND = ("obs", "command")  # (2,) forward speed m/s and yaw rate rad/s the oracle tracks
 DEPTH = ("obs", "depth")  # (T, H, W) depth frames, oldest first, normalised to [-0.5, 0.5]
 DEPTH_FRESH = ("obs", "depth_fresh")  # (1,) bool: a new depth frame arrived on this step
 
@@ -47,6 +48,7 @@ UNSAFE_COLLISIONS = ("info", "unsafe_collisions")  # int: non-foot bodies touchi
 LEVEL = ("info", "level")  # int: the env's terrain level
 CATEGORY = ("info", "category")  # int: index of the env's trail category
 TILE = ("info", "tile")  # int: index of the env's tile in the terrain map
+EPISODE_STEPS = ("info", "episode_steps")  # int: policy steps of the episode so far
 WAYPOINT_COUNT = ("info", "waypoint_count")  # int: expert waypoints on the env's trail
 BASE_POS = ("info", "base_pos")  # (3,) float: base position, world frame, m
 BASE_QUAT = ("info", "base_quat")  # (4,) float: base orientation (w, x, y, z), world frame

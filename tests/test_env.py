@@ -170,12 +170,12 @@ def test_tipped_robot_falls(make: EnvFactory, axis: int) -> None:
 
 def test_reward_clipped_at_zero_and_a_fall_costs_the_termination_penalty(
         make: EnvFactory) -> None:
-    env = make(2)
+    env = make(2, reward_preset="table6")  # the preset that clips
     td = env.reset()
     tilt = np.array([np.cos(np.pi / 4), np.sin(np.pi / 4), 0.0, 0.0])
     env.sim.qpos[0, 3:7] = tilt
     reward = zero_step(env, td)[keys.REWARD][:, 0]
-    penalty = env.cfg.termination_penalty * env.dt
+    penalty = env.termination_penalty * env.dt
     assert penalty < 0
     assert float(reward[0]) == pytest.approx(penalty, abs=1e-6)  # clipped total 0 + penalty
     assert float(reward[1]) >= 0.0  # standing: the clipped total, never negative

@@ -30,7 +30,8 @@ def batch(*shape: int) -> TensorDict:
         "obs": {"proprio": torch.randn(*shape, P, generator=g),
                 "proprio_history": torch.randn(*shape, 10, P, generator=g),
                 "scandots": torch.randn(*shape, 132, generator=g),
-                "privileged": torch.randn(*shape, K, generator=g)},
+                "privileged": torch.randn(*shape, K, generator=g),
+                "command": torch.randn(*shape, 2, generator=g)},
         "expert": {"goals": torch.randn(*shape, 3, 2, generator=g)},
     }, batch_size=list(shape))
 
@@ -84,7 +85,7 @@ class TestActorCritic:
     def test_keys_and_shapes(self):
         actor, critic = make_oracle_actor_critic(DIMS, A, BOUND)
         assert set(actor.in_keys) == {("obs", "proprio"), SCANDOTS, PRIVILEGED,
-                                      ("expert", "goals")}
+                                      ("expert", "goals"), ("obs", "command")}
         with set_exploration_type(ExplorationType.RANDOM):
             out = actor(batch(N))
         assert out[ACTION].shape == (N, A) and out[LOG_PROB].shape == (N,)
@@ -94,7 +95,7 @@ class TestActorCritic:
 
     def test_mlp_sizes_match_the_paper(self):
         actor, critic = make_oracle_actor_critic(DIMS, A, BOUND)
-        in_dim = P + 32 + K + 20 + 6
+        in_dim = P + 32 + K + 20 + 6 + 2  # + the velocity command
         head = actor.module[0].module[2].module  # scan encoder, latent, head
         assert linear_sizes(head) == [in_dim, 512, 256, 128, A]
         assert n_params(head.body) == mlp_params([in_dim, 512, 256, 128, A])
@@ -137,7 +138,7 @@ class TestActorCritic:
         spec = Composite(
             obs=Composite(proprio=Unbounded((N, P)), proprio_history=Unbounded((N, 10, P)),
                           scandots=Unbounded((N, 132)), privileged=Unbounded((N, K)),
-                          shape=(N,)),
+                          command=Unbounded((N, 2)), shape=(N,)),
             expert=Composite(goals=Unbounded((N, 3, 2)), shape=(N,)), shape=(N,))
         assert OracleInputDims.from_spec(spec) == DIMS
         assert DIMS.as_layout()["obs/proprio_history"] == (10, P)

@@ -10,7 +10,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from legoh.config.env import table6_weights
+from legoh.config.env import table6_weights, walk_weights
 from legoh.envs.rewards import REWARD_TERMS, StepState, active_terms, compute_rewards
 
 N, J, F = 2, 4, 2  # envs, joints, feet
@@ -32,10 +32,12 @@ def neutral(**changes: object) -> StepState:
         torques=zeros((N, J)), last_torques=zeros((N, J)), action=zeros((N, J)),
         last_action=zeros((N, J)), waypoint_xy=np.tile([2.0, 0.0], (N, 1)),
         terminus_xy=np.tile([20.0, 0.0], (N, 1)), goal_speed=GOAL_SPEED, reach_radius=0.5,
-        feet_force=zeros((N, F, 3)), feet_contact=zeros((N, F), dtype=bool),
+        feet_force=zeros((N, F, 3)), feet_contact=np.ones((N, F), dtype=bool),
         first_contact=zeros((N, F), dtype=bool), air_time=zeros((N, F)),
         air_time_target=0.5, feet_on_edge=zeros((N, F), dtype=bool),
         unsafe_contacts=zeros(N, dtype=np.int64), level=zeros(N, dtype=np.int64),
+        command=zeros((N, 2)), tracking_sigma=0.25, stance=np.ones((N, F), dtype=bool),
+        feet_height=zeros((N, F)), swing_height=0.08,
     )
     return replace(state, **changes)
 
@@ -92,6 +94,25 @@ CASES: dict[str, tuple[dict, list[float], str]] = {
                     "1 inside the reach radius, -0.75 d outside"),
     "dof_pos_limits": ({"dof_pos": rows([0.9, -0.9, 0.0, 0.0], [1.2, -1.5, 0.0, 0.0])},
                        [0.0, 0.7], "zero inside the range, overshoot summed outside"),
+    "tracking_lin_vel": (
+        {"command": rows([0.5, 0.0], [0.5, 0.0]),
+         "lin_vel_world": rows([0.5, 0.0, 0.0], [0.0, 0.0, 0.0])},
+        [1.0, np.exp(-1.0)], "1 at the commanded speed, exp(-err^2 / sigma) off it"),
+    "tracking_ang_vel": (
+        {"command": rows([0.0, 0.5], [0.0, 0.5]),
+         "ang_vel_body": rows([0.0, 0.0, 0.5], [0.0, 0.0, 0.0])},
+        [1.0, np.exp(-1.0)], "1 at the commanded yaw rate"),
+    "alive": ({}, [1.0, 1.0], "one per step"),
+    "dof_vel": ({"dof_vel": rows([0.0] * J, [1.0, 2.0, 0.0, 0.0])}, [0.0, 5.0],
+                "squared joint velocities"),
+    "feet_contact_phase": (
+        {"stance": np.array([[True, False], [True, False]]),
+         "feet_contact": np.array([[True, False], [False, True]])},
+        [2.0, 0.0], "counts feet whose contact matches the clock"),
+    "feet_swing_height": (
+        {"feet_contact": np.array([[False, True], [False, True]]),
+         "feet_height": rows([0.08, 0.5], [0.0, 0.5])},
+        [0.0, 0.0064], "airborne feet only, squared error to the swing height"),
 }
 
 
@@ -109,7 +130,10 @@ def test_every_registered_term_has_a_case() -> None:
 
 def test_neutral_state_has_no_penalty() -> None:
     state = neutral()
-    bonuses = {"tracking_yaw", "pn_distance"}  # facing the goal; far from the terminus
+    # facing the goal; far from the terminus; on command (standing); alive; feet down as
+    # the (standing) clock asks
+    bonuses = {"tracking_yaw", "pn_distance", "tracking_lin_vel", "tracking_ang_vel", "alive",
+               "feet_contact_phase"}
     for name, fn in REWARD_TERMS.items():
         if name not in bonuses:
             np.testing.assert_allclose(fn(state), 0.0, atol=1e-6, err_msg=name)
@@ -125,8 +149,9 @@ def test_air_time_is_zero_without_touch_down() -> None:
     np.testing.assert_array_equal(REWARD_TERMS["feet_air_time"](state), [0.0, 0.0])
 
 
-def test_table6_terms_are_registered() -> None:
+def test_preset_terms_are_registered() -> None:
     assert set(table6_weights()) <= set(REWARD_TERMS)
+    assert set(walk_weights()) <= set(REWARD_TERMS)
 
 
 def test_active_terms_skips_zero_weights() -> None:

@@ -4,7 +4,8 @@ from dataclasses import dataclass, field
 
 
 def table6_weights() -> dict[str, float]:
-    """Reward weights of appendix Table 6 (robot-specific ones come from robot.reward_weights).
+    """Reward weights of appendix Table 6, the ``table6`` preset (the robot-specific column
+    comes from robot.table6_weights).
 
     ``pn_distance`` (point-navigation distance) is used by the unified stage only: 0 here.
     """
@@ -28,6 +29,40 @@ def table6_weights() -> dict[str, float]:
         "pn_distance": 0.0,
         "dof_pos_limits": 0.0,
     }
+
+
+def walk_weights() -> dict[str, float]:
+    """The ``walk`` preset (the default): unitree_rl_gym's H1 walking recipe on our terms
+    (exp-kernel velocity tracking, alive bonus, contact phase of a gait clock, swing height).
+    Where each term departs from Table 6 and the curves that chose it: docs/oracle.md."""
+    return {
+        "tracking_lin_vel": 1.0,
+        "tracking_ang_vel": 0.5,
+        "alive": 0.15,
+        "lin_vel_z": -2.0,
+        "ang_vel_xy": -0.05,
+        "orientation": -1.0,
+        "base_height": -10.0,
+        "dof_acc": -2.5e-7,
+        "dof_vel": -1.0e-3,
+        "action_rate": -0.01,
+        "dof_pos_limits": -5.0,
+        "hip_pos": -1.0,
+        "feet_contact_phase": 0.18,
+        "feet_swing_height": -20.0,
+        "pn_distance": 0.0,
+    }
+
+
+# name -> (weights, clip the step's total at 0, termination penalty per fall, x dt)
+REWARD_PRESETS = {
+    # legged_gym's defaults around Table 6 (Extreme Parkour trains with them): without the
+    # clip and the penalty our first 2M-frame study learned to dive toward the goal.
+    "table6": (table6_weights, True, -200.0),
+    # every step of a standing robot earns (alive, the kernels), so nothing is clipped and
+    # falling forfeits the rest of the episode's reward, on top of the penalty
+    "walk": (walk_weights, False, -200.0),
+}
 
 
 @dataclass
@@ -55,7 +90,35 @@ class RandomizationConfig:
     push_interval_s: float = 8.0  # s
     push_max_vel: float = 0.5  # m/s, xy
     max_action_delay: int = 1  # policy steps of delay reachable once delay_after_steps passed
-    delay_after_steps: int = 192_000  # global env steps (24 x 8000) before delays switch on
+    # The schedule counts vectorised steps (one per env.step of the whole batch, legged_gym's
+    # common_step_counter): physics draws and pushes start after ``start_after_steps``, delays
+    # after ``delay_after_steps`` (Extreme Parkour: 24 x 8000). Before that every env steps
+    # the nominal model, so a robot learns to walk before it is pushed.
+    start_after_steps: int = 24_000  # 1000 iterations of 24 steps
+    delay_after_steps: int = 36_000  # 1500 iterations of 24 steps
+
+
+@dataclass
+class CommandConfig:
+    """The velocity command the walking rewards track: forward speed drawn per episode,
+    yaw rate steering toward the next expert waypoint (legged_gym's heading command).
+    Evaluation commands ``env.goal_speed`` and never zero."""
+
+    speed: list[float] = field(default_factory=lambda: [0.3, 1.0])  # m/s, uniform per episode
+    zero_prob: float = 0.1  # fraction of training episodes told to stand still (a skill too)
+    heading_gain: float = 1.0  # rad/s of yaw rate per rad of heading error
+    max_yaw_rate: float = 1.0  # rad/s
+
+
+@dataclass
+class GaitConfig:
+    """A gait clock (unitree_rl_gym's H1): legs half a period apart, each in stance for the
+    first ``stance`` of its cycle; its phase (sin, cos) is observed. A standing command asks
+    both feet to stay down."""
+
+    period: float = 0.8  # s
+    stance: float = 0.55  # fraction of the cycle in stance
+    swing_height: float = 0.08  # m, foot lift the swing-height term asks for
 
 
 @dataclass
@@ -74,7 +137,9 @@ class EnvConfig:
 
     num_envs: int = 16
     episode_length_s: float = 20.0  # s (training; evaluation sets 30)
-    action_clip: float = 4.8  # actions are clipped to [-clip, clip] before scaling
+    # actions are clipped to [-clip, clip] before scaling. 20 units of the per-joint scale
+    # (robot.effort_action_scale x torque limit / kp) let a hip reach 1.25 rad, an ankle 0.25
+    action_clip: float = 20.0
     goal_speed: float = 0.8  # m/s, the speed the goal-velocity reward asks for
     waypoint_radius: float = 0.6  # m: an expert waypoint counts as passed within this
     reach_radius: float = 0.5  # m: terminus reached (0.5 training, 0.89 evaluation)
@@ -84,16 +149,20 @@ class EnvConfig:
     history: int = 10  # proprioception history length
     spawn_noise: float = 0.3  # m, xy jitter of the spawn point
     divergence_qvel: float = 1.0e3  # |qvel| above this counts as a diverged simulation
-    rewards: dict[str, float] = field(default_factory=table6_weights)
-    # legged_gym's default: clip the step's total at 0, so that ending an episode early (a
-    # fall) is never a way to escape the penalties. Without it, our first 2M-frame study
-    # learned to dive toward the goal and fall sooner than the untrained policy.
-    only_positive_rewards: bool = True
-    # legged_gym's "termination" term (its biped, Cassie, uses -200), added after the clip
-    # and scaled by dt like every term: a fall costs 4 at 50 Hz. Not in Table 6; without it
-    # the study's oracle learned to dive toward the goal (docs/env.md).
-    termination_penalty: float = -200.0
+    # reward preset (REWARD_PRESETS): walk (default) | table6 (appendix Table 6 as written)
+    reward_preset: str = "walk"
+    # weight per term over the preset's; None keeps the preset's (a term of your own:
+    # +env.rewards.my_term=1.0 after registering it with legoh.envs.rewards.reward_term)
+    rewards: dict[str, float | None] = field(default_factory=lambda: dict.fromkeys(
+        sorted(set(table6_weights()) | set(walk_weights()))))
+    # None: the preset's. True clips the step's total at 0 (legged_gym's only_positive_rewards)
+    only_positive_rewards: bool | None = None
+    # None: the preset's. legged_gym's "termination" term (Cassie: -200), x dt per fall
+    termination_penalty: float | None = None
+    tracking_sigma: float = 0.25  # m^2/s^2, the velocity kernels' exp(-err^2 / sigma)
     air_time_target: float = 0.5  # s, Table 6 feet air time
+    command: CommandConfig = field(default_factory=CommandConfig)
+    gait: GaitConfig = field(default_factory=GaitConfig)
     depth: DepthConfig = field(default_factory=DepthConfig)
     randomization: RandomizationConfig = field(default_factory=RandomizationConfig)
     curriculum: CurriculumConfig = field(default_factory=CurriculumConfig)

@@ -46,10 +46,14 @@ class RobotConfig:
     kd: dict[str, float] = field(default_factory=dict)  # N m s / rad, by joint-name substring
     torque_limit: dict[str, float] = field(default_factory=dict)  # N m; absent: the MJCF's
     action_scale: float = 0.25  # rad per unit action: target = default + scale * action
+    # When set, the per-joint scale is this fraction of torque limit / kp (mjlab's velocity
+    # task): unit noise then asks each joint for the same share of its torque, whatever its
+    # gains. With kp 800 a uniform 0.25 rad asked an ankle for 200 N m of its 40 (docs/oracle.md).
+    effort_action_scale: float | None = None
     nominal_base_height: float = 1.0  # m, pelvis height standing on flat ground
     feet_bodies: list[str] = field(default_factory=list)  # [left, right]
     camera: CameraConfig = field(default_factory=CameraConfig)
     knee_bodies: list[str] = field(default_factory=list)  # shins/knees: collision-term bodies
     hip_joints: list[str] = field(default_factory=list)  # hip yaw/roll: Table 6 "hip position"
-    reward_weights: dict[str, float] = field(default_factory=dict)  # robot-specific Table 6
+    table6_weights: dict[str, float] = field(default_factory=dict)  # this robot's Table 6 column
     render_meshes: bool = False  # keep visual meshes (rendering); training strips them

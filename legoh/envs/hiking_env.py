@@ -28,7 +28,8 @@ from legoh.envs import math3d
 from legoh.envs.batched_sim import BatchedSim
 from legoh.envs.curriculum import update_levels
 from legoh.envs.randomization import build_model_pool, draw_physics
-from legoh.envs.rewards import StepState, active_terms, compute_rewards
+from legoh.config.env import REWARD_PRESETS
+from legoh.envs.rewards import StepState, active_terms, compute_rewards, preset_weights
 from legoh.envs.scene import Scene, build_scene
 from legoh.envs.sensors import DepthRaycaster
 from legoh.envs.terrain import TerrainMap, build_terrain_map
@@ -109,9 +110,13 @@ class HikingEnv(EnvBase):
         self.num_categories = len(self.terrain.categories)
         self.rng = np.random.default_rng(seed)
 
-        weights = dict(env.rewards)
-        weights.update(robot.reward_weights)
-        self.reward_terms = active_terms(weights)
+        self.reward_terms = active_terms(preset_weights(env.reward_preset, dict(env.rewards),
+                                                        dict(robot.table6_weights)))
+        _, clip_total, penalty = REWARD_PRESETS[env.reward_preset]
+        self.only_positive = clip_total if env.only_positive_rewards is None else bool(
+            env.only_positive_rewards)
+        self.termination_penalty = penalty if env.termination_penalty is None else float(
+            env.termination_penalty)
         joints = list(self.robot.actuated_joints)
         self.hip_idx = np.array([joints.index(j) for j in robot.hip_joints], dtype=np.int64)
 
@@ -131,6 +136,9 @@ class HikingEnv(EnvBase):
                                             sim.threads)
         self._alloc_buffers()
         self._make_specs()
+        self.feet_rest_height = self._feet_rest_height()
+        # vectorised steps (one per step of the whole batch, legged_gym's common_step_counter):
+        # the randomisation schedule reads it, checkpoints keep it
         self.global_steps = 0
         self.frame_clock = 0
         self.diverged_count = 0
@@ -153,11 +161,13 @@ class HikingEnv(EnvBase):
         self.last_torques = np.zeros((n, j))
         self.air_time = np.zeros((n, nf))
         self.ctrl = np.tile(self.robot.default_pose, (n, 1))
-        self.proprio_dim = 3 + 3 + 3 * a + 3
+        self.proprio_dim = 3 + 3 + 3 * a + 3 + 2
         self.history = np.zeros((n, self.cfg.history, self.proprio_dim), dtype=np.float32)
         d = self.cfg.depth
         self.depth = np.zeros((n, d.frames, d.height, d.width), dtype=np.float32)
         self.depth_fresh = np.zeros(n, dtype=bool)  # a frame was rendered on this step
+        self.command_speed = np.zeros(n)  # m/s, drawn per episode
+        self.command = np.zeros((n, 2))  # forward speed, yaw rate toward the next waypoint
         self.push_every = max(1, int(round(self.cfg.randomization.push_interval_s / self.dt)))
 
     def _make_specs(self) -> None:
@@ -176,6 +186,7 @@ class HikingEnv(EnvBase):
             "scandots": vec(len(SCAN_X) * len(SCAN_Y)),
             "privileged": vec(self.physics_features.shape[1] + 3 + self.num_categories),
             "goal": vec(4),
+            "command": vec(2),
         }
         if self.cfg.depth.enabled:
             d = self.cfg.depth
@@ -184,6 +195,7 @@ class HikingEnv(EnvBase):
         info = {
             "reached": flag(), "fell": flag(),
             "waypoint": Unbounded(shape=(n,), dtype=torch.int64),
+            "episode_steps": Unbounded(shape=(n,), dtype=torch.int64),
             "progress": Unbounded(shape=(n,), dtype=f32),
             "edge_contacts": Unbounded(shape=(n,), dtype=torch.int64),
             "foot_contacts": Unbounded(shape=(n,), dtype=torch.int64),
@@ -227,6 +239,7 @@ class HikingEnv(EnvBase):
         fresh = none.copy()
         fresh[ids] = True  # only reset envs get a new history entry; the others keep theirs
         self._update_base()
+        self._update_command()
         return self._observe(none, none, fresh)
 
     def _reset_envs(self, ids: np.ndarray) -> None:
@@ -256,13 +269,22 @@ class HikingEnv(EnvBase):
                                         np.sin(yaw / 2)])
         qpos[:, self.scene.qpos_adr] = self.robot.default_pose
         self.ctrl[ids] = self.robot.default_pose
-        self.sim.set_models(ids, self.rng.integers(0, len(self.sim.models), k))
+        # pool model 0 is the nominal one; the randomised ones 1.. join on schedule
+        drawn = (self.rng.integers(1, len(self.sim.models), k) if self._randomizing()
+                 else np.zeros(k, dtype=np.int64))
+        self.sim.set_models(ids, drawn)
         self.sim.reset_envs(ids, qpos, np.zeros((k, model.nv)), self.ctrl[ids])
 
-        max_delay = (self.cfg.randomization.max_action_delay
-                     if self.cfg.randomization.enabled
-                     and self.global_steps >= self.cfg.randomization.delay_after_steps else 0)
+        rc = self.cfg.randomization
+        max_delay = (rc.max_action_delay if rc.enabled
+                     and self.global_steps >= rc.delay_after_steps else 0)
         self.delay[ids] = self.rng.integers(0, max_delay + 1, k)
+        cmd = self.cfg.command
+        if self.evaluation:
+            self.command_speed[ids] = self.cfg.goal_speed
+        else:
+            speed = self.rng.uniform(cmd.speed[0], cmd.speed[1], k)
+            self.command_speed[ids] = np.where(self.rng.random(k) < cmd.zero_prob, 0.0, speed)
         self.waypoint[ids] = 0
         self.steps[ids] = 0
         for buf in (self.action_buf, self.last_action, self.last_dof_vel, self.last_torques,
@@ -271,6 +293,42 @@ class HikingEnv(EnvBase):
         if self.depth_cam is not None:
             self.depth[ids] = self._render_depth(ids)[:, None]
             self.depth_fresh[ids] = True
+
+    def _randomizing(self) -> bool:
+        """Physics draws and pushes are on: randomisation enabled and its start passed."""
+        rc = self.cfg.randomization
+        return rc.enabled and len(self.sim.models) > 1 and (
+            self.global_steps >= rc.start_after_steps)
+
+    def _feet_rest_height(self) -> np.ndarray:
+        """(F,) height of each foot body's origin above flat ground in the default pose: the
+        zero of the swing-height term's foot lift."""
+        import mujoco
+
+        model, d = self.scene.model, mujoco.MjData(self.scene.model)
+        d.qpos[:] = model.qpos0
+        d.qpos[0:3] = [0.0, 0.0, self.scene.stand_height]
+        d.qpos[3:7] = [1.0, 0.0, 0.0, 0.0]
+        d.qpos[self.scene.qpos_adr] = self.robot.default_pose
+        mujoco.mj_kinematics(model, d)
+        ids = [model.body(b).id for b in self.robot.feet_bodies]
+        return d.xpos[ids, 2].copy()
+
+    def _update_command(self) -> None:
+        """Forward speed of the episode; yaw rate steering toward the current waypoint."""
+        pos, _, yaw = self._base()
+        d = self._waypoint_xy(0) - pos[:, :2]
+        err = (np.arctan2(d[:, 1], d[:, 0]) - yaw + np.pi) % (2 * np.pi) - np.pi
+        cmd = self.cfg.command
+        rate = np.clip(cmd.heading_gain * err, -cmd.max_yaw_rate, cmd.max_yaw_rate)
+        self.command[:, 0] = self.command_speed
+        self.command[:, 1] = np.where(self.command_speed > 0, rate, 0.0)
+
+    def _gait_phase(self) -> np.ndarray:
+        """(N, F) phase in [0, 1) of each leg's cycle, legs half a period apart."""
+        t = self.steps * self.dt / self.cfg.gait.period
+        offsets = np.arange(len(self.robot.feet_bodies)) / len(self.robot.feet_bodies)
+        return (t[:, None] + offsets[None]) % 1.0
 
     # ----------------------------------------------------------------- step
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
@@ -291,25 +349,25 @@ class HikingEnv(EnvBase):
         time_before = self.sim.state[:, 0].copy()
         self.sim.step(self.ctrl)
         self.steps += 1
-        self.global_steps += self.num_envs
+        self.global_steps += 1
 
         diverged = self._handle_divergence(time_before)
         self._update_base()
         state = self._step_state(action)
         reward, parts = compute_rewards(state, self.reward_terms)
-        if self.cfg.only_positive_rewards:
+        if self.only_positive:
             reward = np.maximum(reward, 0.0)
         self._last_parts = parts
         reached = self._reached()
         fell = self._fell(state) & ~diverged
         timeout = self.steps >= self.max_steps
         terminated = (reached | fell) & ~diverged
-        reward = reward + self.cfg.termination_penalty * self.dt * (fell & ~reached)
+        reward = reward + self.termination_penalty * self.dt * (fell & ~reached)
         truncated = (timeout | diverged) & ~terminated
 
         self.last_action = action
         self.last_dof_vel = state.dof_vel
-        self.last_torques = state.torques
+        self.last_torques = state.torques.copy()  # sensordata is overwritten in place
         self.frame_clock += 1  # one clock for all envs: every env gets a frame on the same step
         self.depth_fresh[:] = False
         if self.depth_cam is not None and self.frame_clock % self.cfg.depth.every == 0:
@@ -317,6 +375,7 @@ class HikingEnv(EnvBase):
             self.depth = np.concatenate([self.depth[:, 1:], frame[:, None]], axis=1)
             self.depth_fresh[:] = True
         out = self._observe(reached, fell)
+        out.set(keys.EPISODE_STEPS, torch.as_tensor(self.steps.copy()))
         out.set(keys.REWARD, torch.as_tensor(reward, dtype=torch.float32).unsqueeze(-1))
         out.set(keys.TERMINATED, torch.as_tensor(terminated).unsqueeze(-1))
         out.set(keys.TRUNCATED, torch.as_tensor(truncated).unsqueeze(-1))
@@ -326,7 +385,7 @@ class HikingEnv(EnvBase):
     def _maybe_push(self) -> None:
         """Appendix Table 5: every push interval, a random base xy velocity kick."""
         rc = self.cfg.randomization
-        if rc.enabled and rc.push_max_vel > 0:
+        if self._randomizing() and rc.push_max_vel > 0:
             due = (self.steps > 0) & (self.steps % self.push_every == 0)
             if due.any():
                 kick = self.rng.uniform(-rc.push_max_vel, rc.push_max_vel, (int(due.sum()), 2))
@@ -375,7 +434,13 @@ class HikingEnv(EnvBase):
         feet_xy = sd[:, -1, sl.feet_pos].reshape(self.num_envs, nf, 3)[..., :2]
         on_edge = in_contact & self._edge_at(feet_xy)
         self._advance_waypoints(pos[:, :2])
+        self._update_command()
         ground = self.terrain.height_at(pos[:, :2])
+        feet_z = sd[:, -1, sl.feet_pos].reshape(self.num_envs, nf, 3)[..., 2]
+        lift = feet_z - self.terrain.height_at(feet_xy.reshape(-1, 2)).reshape(
+            self.num_envs, nf) - self.feet_rest_height
+        standing = self.command_speed[:, None] == 0
+        stance = (self._gait_phase() < self.cfg.gait.stance) | standing
         return StepState(
             dt=self.dt,
             lin_vel_body=math3d.world_to_body(rot, qvel[:, 0:3]),
@@ -396,7 +461,9 @@ class HikingEnv(EnvBase):
             feet_force=force, feet_contact=in_contact, first_contact=first, air_time=air,
             air_time_target=self.cfg.air_time_target, feet_on_edge=on_edge,
             unsafe_contacts=(sd[:, :, sl.unsafe_found] > 0).any(axis=1).sum(axis=1),
-            level=self.level,
+            level=self.level, command=self.command.copy(),
+            tracking_sigma=self.cfg.tracking_sigma, stance=stance, feet_height=lift,
+            swing_height=self.cfg.gait.swing_height,
         )
 
     def _edge_at(self, xy: np.ndarray) -> np.ndarray:
@@ -474,6 +541,8 @@ class HikingEnv(EnvBase):
             self.last_action,
             terminus / np.maximum(dist, 1e-6),  # direction to the terminus (yaw frame)
             np.minimum(dist, 20.0) / 20.0,  # distance, normalised and capped at 20 m
+            np.sin(2 * np.pi * self._gait_phase()[:, :1]),  # the gait clock: a deployable
+            np.cos(2 * np.pi * self._gait_phase()[:, :1]),  # input, students see it too
         ], axis=1).astype(np.float32)
         shifted = np.concatenate([self.history[:, 1:], proprio[:, None]], axis=1)
         self.history = shifted if advance is None else np.where(advance[:, None, None],
@@ -509,7 +578,8 @@ class HikingEnv(EnvBase):
 
         obs = {"proprio": t(proprio), "proprio_history": t(self.history),
                "scandots": t(scandots), "privileged": t(privileged),
-               "goal": t(np.concatenate([terminus, middle], axis=1))}
+               "goal": t(np.concatenate([terminus, middle], axis=1)),
+               "command": t(self.command)}
         if self.depth_cam is not None:
             obs["depth"] = t(self.depth)
             obs["depth_fresh"] = t(self.depth_fresh[:, None], torch.bool)
@@ -517,6 +587,7 @@ class HikingEnv(EnvBase):
         info = {
             "reached": t(reached, torch.bool), "fell": t(fell, torch.bool),
             "waypoint": t(self.waypoint, i64), "progress": t(self._progress()),
+            "episode_steps": t(self.steps, i64),
             "edge_contacts": t((in_contact & self._edge_at(feet_xy)).sum(axis=1), i64),
             "foot_contacts": t(in_contact.sum(axis=1), i64),
             "unsafe_collisions": t((sd[:, :, sl.unsafe_found] > 0).any(axis=1).sum(axis=1), i64),

@@ -34,14 +34,19 @@ class PhysicsDraw:
 
 
 def draw_physics(cfg: RandomizationConfig, size: int, rng: np.random.Generator) -> PhysicsDraw:
-    """Sample ``size`` parameter sets; with randomisation off, one nominal set."""
+    """The nominal set first, then (randomisation on) ``size`` sampled sets: envs step the
+    nominal model until the schedule (``start_after_steps``) lets the others in."""
+    nominal = PhysicsDraw(np.ones(1), np.zeros(1), np.zeros((1, 3)), np.ones(1))
     if not cfg.enabled:
-        return PhysicsDraw(np.ones(1), np.zeros(1), np.zeros((1, 3)), np.ones(1))
+        return nominal
     return PhysicsDraw(
-        friction=rng.uniform(*cfg.friction, size),
-        mass_offset=rng.uniform(*cfg.base_mass_offset, size),
-        com_offset=rng.uniform(-cfg.base_com_offset, cfg.base_com_offset, (size, 3)),
-        motor_strength=rng.uniform(*cfg.motor_strength, size),
+        friction=np.concatenate([nominal.friction, rng.uniform(*cfg.friction, size)]),
+        mass_offset=np.concatenate([nominal.mass_offset,
+                                    rng.uniform(*cfg.base_mass_offset, size)]),
+        com_offset=np.concatenate([nominal.com_offset, rng.uniform(
+            -cfg.base_com_offset, cfg.base_com_offset, (size, 3))]),
+        motor_strength=np.concatenate([nominal.motor_strength,
+                                       rng.uniform(*cfg.motor_strength, size)]),
     )
 
 

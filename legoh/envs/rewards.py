@@ -1,7 +1,8 @@
 """Reward terms of appendix Table 6, each a small pure function of one step's state.
 
-Terms are registered by name; weights come from config (``env.rewards``, overridden per robot
-by ``robot.reward_weights``); zero-weight terms are never computed. Sign convention: every
+Terms are registered by name; weights come from a preset (``env.reward_preset``: ``walk``,
+the default, or ``table6``, with the robot's Table 6 column) and ``env.rewards`` on top
+(:func:`preset_weights`); zero-weight terms are never computed. Sign convention: every
 term returns a non-negative magnitude or a bonus, and its weight carries the sign (Table 6's
 weights, negative for penalties). Like legged_gym and Extreme Parkour, the weighted sum is
 scaled by the policy period dt. Bookkeeping (air time, contacts, waypoint index) happens in
@@ -51,6 +52,11 @@ class StepState:
     feet_on_edge: np.ndarray  # (N, F) bool: in contact on a terrain edge
     unsafe_contacts: np.ndarray  # (N,) number of non-foot bodies touching the world
     level: np.ndarray  # (N,) terrain level
+    command: np.ndarray  # (N, 2) forward speed m/s (yaw frame), yaw rate rad/s
+    tracking_sigma: float  # m^2/s^2 (rad^2/s^2 for the yaw rate)
+    stance: np.ndarray  # (N, F) bool: the gait clock wants this foot on the ground
+    feet_height: np.ndarray  # (N, F) m: foot lift above its standing height
+    swing_height: float  # m
 
 
 RewardTerm = Callable[[StepState], np.ndarray]
@@ -183,6 +189,60 @@ def dof_pos_limits(s: StepState) -> np.ndarray:
     """sum of how far joints are outside their range (rad)."""
     low, high = s.joint_range[:, 0], s.joint_range[:, 1]
     return np.sum(np.maximum(low - s.dof_pos, 0.0) + np.maximum(s.dof_pos - high, 0.0), axis=1)
+
+
+@reward_term
+def tracking_lin_vel(s: StepState) -> np.ndarray:
+    """exp(-|v_cmd - v_xy|^2 / sigma), velocity in the yaw frame, command (speed, 0)."""
+    c, sn = np.cos(s.yaw), np.sin(s.yaw)
+    vx = c * s.lin_vel_world[:, 0] + sn * s.lin_vel_world[:, 1]
+    vy = -sn * s.lin_vel_world[:, 0] + c * s.lin_vel_world[:, 1]
+    return np.exp(-((vx - s.command[:, 0]) ** 2 + vy**2) / s.tracking_sigma)
+
+
+@reward_term
+def tracking_ang_vel(s: StepState) -> np.ndarray:
+    """exp(-(w_cmd - w_z)^2 / sigma): the yaw rate that steers toward the next goal."""
+    return np.exp(-((s.ang_vel_body[:, 2] - s.command[:, 1]) ** 2) / s.tracking_sigma)
+
+
+@reward_term
+def alive(s: StepState) -> np.ndarray:
+    """1 per step not fallen (unitree_rl_gym's H1: 0.15)."""
+    return np.ones(len(s.yaw))
+
+
+@reward_term
+def dof_vel(s: StepState) -> np.ndarray:
+    """sum qd^2."""
+    return np.sum(s.dof_vel**2, axis=1)
+
+
+@reward_term
+def feet_contact_phase(s: StepState) -> np.ndarray:
+    """Number of feet whose contact matches the gait clock (stance down, swing up)."""
+    return np.sum(s.feet_contact == s.stance, axis=1).astype(np.float64)
+
+
+@reward_term
+def feet_swing_height(s: StepState) -> np.ndarray:
+    """sum over airborne feet of (lift - swing height)^2."""
+    return np.sum((s.feet_height - s.swing_height) ** 2 * ~s.feet_contact, axis=1)
+
+
+def preset_weights(preset: str, overrides: dict[str, float | None],
+                   robot_table6: dict[str, float]) -> dict[str, float]:
+    """Weights of a reward preset (``legoh.config.env.REWARD_PRESETS``), the robot's Table 6
+    column for ``table6``, then ``overrides`` (``env.rewards``)."""
+    from legoh.config.env import REWARD_PRESETS
+
+    if preset not in REWARD_PRESETS:
+        raise ValueError(f"env.reward_preset={preset!r}: known presets {sorted(REWARD_PRESETS)}")
+    weights = REWARD_PRESETS[preset][0]()
+    if preset == "table6":
+        weights.update(robot_table6)
+    weights.update({k: v for k, v in overrides.items() if v is not None})
+    return weights
 
 
 def active_terms(weights: dict[str, float]) -> dict[str, tuple[RewardTerm, float]]:

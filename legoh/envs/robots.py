@@ -76,7 +76,7 @@ class RobotInfo:
     kd: np.ndarray  # N m s / rad
     torque_limit: np.ndarray  # N m
     joint_range: np.ndarray  # (n, 2) rad, from the MJCF
-    action_scale: float  # rad per unit action
+    action_scale: np.ndarray  # (num_actions,) rad per unit action
     base_body: str
     feet_bodies: tuple[str, ...]
     knee_bodies: tuple[str, ...]
@@ -213,13 +213,23 @@ def build_robot_spec(cfg: RobotConfig, render: bool = False) -> tuple[mujoco.MjS
         kd=kd,
         torque_limit=np.array([torque_limit[j] for j in actuated]),
         joint_range=np.array([_joint_limits(spec, j) for j in actuated]),
-        action_scale=float(cfg.action_scale),
+        action_scale=_action_scale(cfg, kp, np.array([torque_limit[j] for j in actuated]),
+                                   num_actions),
         base_body=cfg.base_body,
         feet_bodies=tuple(cfg.feet_bodies),
         knee_bodies=tuple(cfg.knee_bodies),
         nominal_base_height=float(cfg.nominal_base_height),
     )
     return spec, info
+
+
+def _action_scale(cfg: RobotConfig, kp: np.ndarray, torque_limit: np.ndarray,
+                  num_actions: int) -> np.ndarray:
+    """Per-joint rad per unit action: ``effort_action_scale x torque limit / kp`` when set,
+    else ``action_scale`` for every joint."""
+    if cfg.effort_action_scale is None:
+        return np.full(num_actions, float(cfg.action_scale))
+    return cfg.effort_action_scale * torque_limit[:num_actions] / kp[:num_actions]
 
 
 def add_flat_ground(spec: mujoco.MjSpec, friction: float = 1.0) -> None:

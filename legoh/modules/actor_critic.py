@@ -10,9 +10,12 @@ Extreme Parkour and rsl_rl), not a TanhNormal. Why: (1) the paper's policy is th
 they train with a Normal; (2) the env clips actions to its bound anyway, so squashing
 buys nothing, while TanhNormal's log-prob needs an atanh of the stored action, which is
 ill-conditioned near the bound and needs a Jacobian term; (3) a state-independent std is
-the exploration knob PPO's entropy bonus acts on. The mean is ``bound * tanh(h)`` (the
-paper's Tanh output, scaled so the deterministic policy can reach the whole action box);
-samples are not clipped here (their log-prob stays exact), the env clips them.
+the exploration knob PPO's entropy bonus acts on. The mean is linear (rsl_rl, mjlab) by
+default, its last layer started at 1/100 of its usual scale so the untrained policy holds
+the default pose; ``algo.tanh_bound=B`` gives the paper's Tanh output as ``B * tanh(h)``.
+With B = the action clip (4.8) the untrained mean swung joints by ~1 rad, the first PPO
+update had a KL of ~9.5 and the robot fell in 1.3 s (docs/oracle.md). Samples are not
+clipped here (their log-prob stays exact), the env clips them.
 
 The critic has the same shape with its own scandot and privileged encoders (value
 gradients never move the actor's z_tea) and a linear output: a Tanh on a value head
@@ -36,6 +39,7 @@ from torchrl.modules import IndependentNormal, ProbabilisticActor
 
 from legoh.keys import (
     ACTION,
+    COMMAND,
     EXPERT_GOALS,
     PRIVILEGED,
     PROPRIO,
@@ -82,6 +86,7 @@ class OracleInputDims:
     scandots: int = 132
     expert_goals: tuple[int, int] = (3, 2)
     history: int = 10
+    command: int = 2
 
     @classmethod
     def from_spec(cls, observation_spec) -> OracleInputDims:
@@ -92,14 +97,14 @@ class OracleInputDims:
         hist, proprio = last(PROPRIO_HISTORY, 2)
         return cls(proprio=last(PROPRIO)[0], privileged=last(PRIVILEGED)[0],
                    scandots=last(SCANDOTS)[0], expert_goals=last(EXPERT_GOALS, 2),
-                   history=hist)
+                   history=hist, command=last(COMMAND)[0])
 
     def as_layout(self) -> dict[str, tuple[int, ...]]:
         """Observation layout (key -> per-env shape), as stored in checkpoints."""
         return {"/".join(PROPRIO): (self.proprio,), "/".join(PRIVILEGED): (self.privileged,),
                 "/".join(SCANDOTS): (self.scandots,),
                 "/".join(PROPRIO_HISTORY): (self.history, self.proprio),
-                "/".join(EXPERT_GOALS): self.expert_goals}
+                "/".join(EXPERT_GOALS): self.expert_goals, "/".join(COMMAND): (self.command,)}
 
 
 class ConcatMLP(nn.Module):
@@ -127,21 +132,27 @@ class GaussianPolicyHead(nn.Module):
     """Mean ``bound * tanh(MLP(x))`` (the paper's Tanh output in action units) and a
     learned state-independent std (``exp`` of a log-std parameter, floored at ``min_std``).
 
-    Inputs as :class:`ConcatMLP`; outputs ``(loc, scale)``, each (B..., A).
+    Inputs as :class:`ConcatMLP`; outputs ``(loc, scale)``, each (B..., A). ``bound`` None:
+    a linear mean.
     """
 
-    def __init__(self, body: ConcatMLP, action_dim: int, bound: float, init_std: float,
+    def __init__(self, body: ConcatMLP, action_dim: int, bound: float | None, init_std: float,
                  min_std: float) -> None:
         super().__init__()
         self.body = body
-        self.bound = float(bound)
+        self.bound = None if bound is None else float(bound)
+        last = [m for m in body.net.modules() if isinstance(m, nn.Linear)][-1]
+        with torch.no_grad():  # near-zero initial mean: the untrained policy stands
+            last.weight.mul_(0.01)
+            last.bias.zero_()
         self.std = AddStateIndependentNormalScale(action_dim, scale_mapping="exp",
                                                   scale_lb=min_std,
                                                   init_value=math.log(init_std))
 
     def forward(self, *xs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Observations -> (loc, scale), (B..., A) each."""
-        return self.std(self.bound * torch.tanh(self.body(*xs)))
+        h = self.body(*xs)
+        return self.std(h if self.bound is None else self.bound * torch.tanh(h))
 
 
 def _head_inputs(dims: OracleInputDims, cfg: OracleNetConfig, scan_key, priv_key
@@ -151,12 +162,13 @@ def _head_inputs(dims: OracleInputDims, cfg: OracleNetConfig, scan_key, priv_key
     rows = [(PROPRIO, dims.proprio, 1), (scan_key, cfg.scan_encoder[-1], 1)]
     if cfg.raw_privileged:
         rows.append((PRIVILEGED, dims.privileged, 1))
-    rows += [(priv_key, cfg.priv_encoder[-1], 1), (EXPERT_GOALS, goals, 2)]
+    rows += [(priv_key, cfg.priv_encoder[-1], 1), (EXPERT_GOALS, goals, 2),
+             (COMMAND, dims.command, 1)]
     keys, sizes, events = (list(c) for c in zip(*rows, strict=True))
     return keys, sizes, events
 
 
-def make_oracle_actor_critic(dims: OracleInputDims, action_dim: int, action_bound: float,
+def make_oracle_actor_critic(dims: OracleInputDims, action_dim: int, action_bound: float | None,
                              cfg: OracleNetConfig | None = None, *,
                              use_adaptation: bool = False, action_spec=None,
                              ) -> tuple[ProbabilisticActor, TensorDictSequential]:
@@ -164,7 +176,7 @@ def make_oracle_actor_critic(dims: OracleInputDims, action_dim: int, action_boun
 
     Args:
         dims: input sizes (``OracleInputDims.from_spec(env.observation_spec)``).
-        action_dim: A. action_bound: the env's action clip; the mean is ``bound * tanh``.
+        action_dim: A. action_bound: None for a linear mean, else ``bound * tanh``.
         cfg: network sizes. action_spec: optional, attached to the actor (not enforced).
         use_adaptation: take the privileged latent from the adaptation module (proprio
             history) instead of the privileged encoder. The adaptation module takes the

@@ -15,6 +15,7 @@ from torchrl.objectives import ClipPPOLoss
 from torchrl.objectives.value import GAE
 
 from legoh.config.algo import OracleConfig
+from legoh.modules.actor_critic import LOC, SCALE
 
 LR_BOUNDS = (1e-5, 1e-2)  # rsl_rl's clamp for the adaptive learning rate
 
@@ -22,7 +23,7 @@ LR_BOUNDS = (1e-5, 1e-2)  # rsl_rl's clamp for the adaptive learning rate
 def make_ppo(actor, critic, cfg: OracleConfig) -> tuple[ClipPPOLoss, GAE]:
     """ClipPPOLoss (advantages normalised per minibatch) and GAE over the critic."""
     loss = ClipPPOLoss(actor, critic, clip_epsilon=cfg.clip_epsilon, entropy_coeff=cfg.entropy_coef,
-                       critic_coeff=cfg.value_coef, loss_critic_type="smooth_l1",
+                       critic_coeff=cfg.value_coef, loss_critic_type="l2", clip_value=True,
                        normalize_advantage=True)
     loss.set_keys(sample_log_prob="sample_log_prob")
     gae = GAE(gamma=cfg.gamma, lmbda=cfg.gae_lambda, value_network=critic, average_gae=False)
@@ -38,12 +39,24 @@ def adapt_learning_rate(lr: float, kl: float, desired_kl: float) -> float:
     return min(max(lr, LR_BOUNDS[0]), LR_BOUNDS[1])
 
 
+def gaussian_kl(loc0: torch.Tensor, scale0: torch.Tensor, loc1: torch.Tensor,
+                scale1: torch.Tensor) -> torch.Tensor:
+    """Mean over the batch of KL(old || new) between diagonal Gaussians, summed over actions
+    (rsl_rl's exact KL: the sampled estimate of a 1.5k-frame minibatch is noisy)."""
+    kl = (torch.log(scale1 / scale0) + (scale0**2 + (loc0 - loc1) ** 2) / (2 * scale1**2)
+          - 0.5)
+    return kl.sum(-1).mean()
+
+
 def ppo_update(loss: ClipPPOLoss, optimizer: torch.optim.Optimizer, data: TensorDictBase,
                cfg: OracleConfig, generator: torch.Generator | None = None,
-               scale: float = 1.0) -> dict[str, float]:
+               scale: float = 1.0, actor=None) -> dict[str, float]:
     """Epochs of minibatch updates on a flat batch that already holds GAE advantages.
 
     ``scale`` multiplies the summed loss (the unified stage's w1); logged values are unscaled.
+    With ``actor`` (a Gaussian policy writing ``("hidden","action_loc"/"action_scale")``,
+    also stored in ``data`` by the collector) the learning rate follows the exact KL between
+    the acting and the current policy; else torchrl's sampled ``kl_approx``.
     """
     sums: dict[str, float] = defaultdict(float)
     count = 0
@@ -53,12 +66,16 @@ def ppo_update(loss: ClipPPOLoss, optimizer: torch.optim.Optimizer, data: Tensor
         for k in range(cfg.minibatches):
             batch = data[order[k * size:(k + 1) * size]]
             out = loss(batch)
+            if actor is not None:
+                with torch.no_grad():
+                    new = actor(batch.select(*actor.in_keys).clone())
+                out["kl_exact"] = gaussian_kl(batch[LOC], batch[SCALE], new[LOC], new[SCALE])
             total = scale * sum(v for key, v in out.items() if key.startswith("loss_"))
             optimizer.zero_grad()
             total.backward()
             grad_norm = torch.nn.utils.clip_grad_norm_(loss.parameters(), cfg.max_grad_norm)
             optimizer.step()
-            kl = float(out["kl_approx"].detach())
+            kl = float(out["kl_exact" if actor is not None else "kl_approx"].detach())
             if cfg.desired_kl > 0:
                 lr = adapt_learning_rate(optimizer.param_groups[0]["lr"], kl, cfg.desired_kl)
                 for group in optimizer.param_groups:

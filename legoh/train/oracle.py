@@ -47,7 +47,7 @@ def build_oracle(env: HikingEnv, cfg: DictConfig):
     """Actor, critic and adaptation module sized from the env's specs."""
     dims = OracleInputDims.from_spec(env.observation_spec)
     net = OracleNetConfig(init_std=cfg.algo.init_noise_std)
-    actor, critic = make_oracle_actor_critic(dims, env.num_actions, cfg.env.action_clip, net)
+    actor, critic = make_oracle_actor_critic(dims, env.num_actions, cfg.algo.tanh_bound, net)
     adaptation = make_adaptation_module(dims.proprio, dims.history)
     return dims, actor, critic, adaptation
 
@@ -56,9 +56,12 @@ def batch_scalars(batch) -> dict[str, float]:
     """Per-iteration means of what the env reported: rewards, each term, levels, outcomes."""
     nxt = batch["next"]
     done = nxt["done"].float()
+    ended = nxt[keys.EPISODE_STEPS][nxt["done"].squeeze(-1)]
     stats = {
         "reward": float(nxt["reward"].mean()),
-        "episode_frames": float(done.numel() / max(done.sum().item(), 1.0)),
+        # mean length of the episodes that ended in this batch; NaN when none did (the
+        # frames-over-dones ratio it replaces read as the whole batch then)
+        "episode_frames": float(ended.float().mean()) if ended.numel() else float("nan"),
         "level_mean": float(nxt[keys.LEVEL].float().mean()),
         "reached_frac": float(nxt[keys.REACHED].float().sum() / max(done.sum().item(), 1.0)),
         "fell_frac": float(nxt[keys.FELL].float().sum() / max(done.sum().item(), 1.0)),
@@ -69,15 +72,21 @@ def batch_scalars(batch) -> dict[str, float]:
     return stats
 
 
-def train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None = None) -> OracleRun:
-    """Train the oracle for ``cfg.algo.total_frames`` env steps; returns the trained actor."""
+def train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None = None,
+                 on_iteration=None) -> OracleRun:
+    """Train the oracle for ``cfg.algo.total_frames`` env steps; returns the trained actor.
+
+    ``on_iteration(it, stats, actor)``, if given, runs after each iteration is logged (the
+    learn-to-walk benchmark evaluates milestones there); returning True stops training.
+    """
     from legoh.eval.benchmark import torch_threads
 
     with torch_threads(cfg.algo.torch_threads):
-        return _train_oracle(cfg, out_dir, resume)
+        return _train_oracle(cfg, out_dir, resume, on_iteration)
 
 
-def _train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None) -> OracleRun:
+def _train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None,
+                  on_iteration=None) -> OracleRun:
     algo = cfg.algo
     out_dir.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(cfg.seed)
@@ -124,7 +133,7 @@ def _train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None) -> OracleR
         batch = batch.reshape(-1, batch.shape[-1]).to(device)
         with torch.no_grad():
             gae(batch)
-        stats = ppo_update(loss, optimizer, batch.reshape(-1), algo, gen)
+        stats = ppo_update(loss, optimizer, batch.reshape(-1), algo, gen, actor=actor)
         adapt = adaptation_loss(adaptation, actor, batch.reshape(-1))
         adapt_optim.zero_grad()
         adapt.backward()
@@ -138,9 +147,13 @@ def _train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None) -> OracleR
         it += 1
         record_iteration(it, iterations, stats, batch, algo, csv, mcap, env.dt, checkpoint)
         bar.update(1)
+        ep = stats["episode_frames"]
         bar.set_postfix(fps=f"{stats['frames_per_s']:.0f}", reward=f"{stats['reward']:.3f}",
-                        ep_len=f"{stats['episode_frames'] * env.dt:.1f}s",
-                        level=f"{stats['level_mean']:.2f}")
+                        ep_len="-" if np.isnan(ep) else f"{ep * env.dt:.1f}s",
+                        fell=f"{stats['fell_frac']:.2f}", level=f"{stats['level_mean']:.2f}")
+        if on_iteration is not None and on_iteration(it, stats, actor):
+            checkpoint(it)
+            break
     bar.close()
     collector.shutdown()
     csv.close()

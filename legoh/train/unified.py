@@ -153,7 +153,7 @@ def build_student(cfg: DictConfig, env: EnvBase) -> Student:
     far = algo.depth_far if algo.depth_far is not None else cfg.env.depth.far
     dims = StudentDims.from_spec(env.observation_spec, depth_far=float(far))
     init_std = algo.init_noise_std if algo.ppo else 0.1  # distill-only students: little noise
-    return make_student(algo.student, dims, env.action_spec.shape[-1], cfg.env.action_clip,
+    return make_student(algo.student, dims, env.action_spec.shape[-1], algo.tanh_bound,
                         preset=algo.net, core=algo.core, init_std=init_std)
 
 
