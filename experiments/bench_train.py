@@ -1,0 +1,158 @@
+"""Where the oracle loop's time goes: bare env, collection, update and loop frames/s.
+
+    python experiments/bench_train.py [--sizes 64 256 512 1024] [--iterations 3]
+
+Per batch size N, in one run (these machines are noisy, so compare within a run):
+  bare:       HikingEnv.step_and_maybe_reset with random actions (the ceiling);
+  collection: torchrl's Collector with the oracle actor (N x steps_per_env frames a batch);
+  update:     GAE + the PPO epochs + the adaptation module on one collected batch;
+  loop:       the real training loop (``train_oracle``), frames/s of its iterations after
+              the first.
+Then update variants at the largest N (epochs x minibatches, network width): what a cheaper
+update would buy. Writes experiments/results/bench_train.{md,json}.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import tempfile
+import time
+from pathlib import Path
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import numpy as np  # noqa: E402
+import torch  # noqa: E402
+from hydra import compose, initialize_config_dir  # noqa: E402
+from torchrl.collectors import Collector  # noqa: E402
+
+from legoh.config import register_configs  # noqa: E402
+from legoh.envs.hiking_env import make_env  # noqa: E402
+from legoh.eval.curves import read_columns  # noqa: E402
+from legoh.objectives.adaptation import adaptation_loss  # noqa: E402
+from legoh.objectives.ppo import make_ppo, ppo_update  # noqa: E402
+from legoh.train.oracle import build_oracle, train_oracle  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+OUT = ROOT / "experiments" / "results"
+
+
+def config(n: int, *extra: str):
+    register_configs()
+    with initialize_config_dir(str(ROOT / "conf"), version_base="1.3"):
+        return compose("config", overrides=["trail=flat", f"algo.num_envs={n}", *extra])
+
+
+def bare_rate(env, steps: int) -> float:
+    gen = torch.Generator().manual_seed(0)
+    td = env.reset()
+    t0 = 0.0
+    for i in range(steps + 5):
+        if i == 5:
+            t0 = time.perf_counter()
+        td["action"] = torch.randn(env.num_envs, env.num_actions, generator=gen) * 0.5
+        _, td = env.step_and_maybe_reset(td)
+    return env.num_envs * steps / (time.perf_counter() - t0)
+
+
+def collect_and_update(cfg, env, batches: int) -> tuple[float, float, object]:
+    """(collection frames/s, update frames/s, last batch)."""
+    torch.manual_seed(0)
+    _, actor, critic, adaptation = build_oracle(env, cfg)
+    frames = cfg.algo.num_envs * cfg.algo.steps_per_env
+    collector = Collector(env, actor, frames_per_batch=frames, total_frames=frames * batches,
+                          auto_register_policy_transforms=False)
+    loss, gae = make_ppo(actor, critic, cfg.algo)
+    opt = torch.optim.Adam(loss.parameters(), lr=cfg.algo.lr)
+    aopt = torch.optim.Adam(adaptation.parameters(), lr=1e-3)
+    t_col, t_upd, batch = [], [], None
+    tick = time.perf_counter()
+    for batch in collector:
+        t_col.append(time.perf_counter() - tick)
+        t_upd.append(update_time(cfg, batch, loss, gae, opt, adaptation, aopt, actor))
+        tick = time.perf_counter()
+    collector.shutdown()
+    return frames / np.mean(t_col[1:]), frames / np.mean(t_upd[1:]), batch
+
+
+def update_time(cfg, batch, loss, gae, opt, adaptation, aopt, actor) -> float:
+    t0 = time.perf_counter()
+    batch = batch.reshape(-1, batch.shape[-1])
+    with torch.no_grad():
+        gae(batch)
+    ppo_update(loss, opt, batch.reshape(-1), cfg.algo, actor=actor)
+    a = adaptation_loss(adaptation, actor, batch.reshape(-1))
+    aopt.zero_grad()
+    a.backward()
+    aopt.step()
+    return time.perf_counter() - t0
+
+
+def loop_rate(cfg, iterations: int) -> float:
+    frames = cfg.algo.num_envs * cfg.algo.steps_per_env
+    with tempfile.TemporaryDirectory() as tmp:
+        from omegaconf import OmegaConf
+
+        run_cfg = OmegaConf.merge(cfg, {"algo": {"total_frames": frames * iterations}})
+        run = train_oracle(run_cfg, Path(tmp))
+        fps = read_columns(run.csv)["frames_per_s"]
+    return float(np.mean(fps[1:]))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sizes", type=int, nargs="+", default=[64, 256, 512, 1024])
+    parser.add_argument("--iterations", type=int, default=3)
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    rows = []
+    for n in args.sizes:
+        cfg = config(n)
+        env = make_env(cfg, num_envs=n)
+        bare = bare_rate(env, max(50, 6000 // n))
+        col, upd, _ = collect_and_update(cfg, env, args.iterations)
+        env.close()
+        loop = loop_rate(cfg, args.iterations)
+        row = {"N": n, "bare": bare, "collection": col, "update": upd, "loop": loop,
+               "loop_over_bare": loop / bare, "update_share": (1 / upd) / (1 / col + 1 / upd)}
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+
+    n = args.sizes[-1]
+    variants = {"5 x 4, 512-256-128 (default)": [],
+                "5 x 2": ["algo.minibatches=2"],
+                "2 x 4": ["algo.epochs=2"],
+                "2 x 2": ["algo.epochs=2", "algo.minibatches=2"]}
+    var_rows = []
+    for name, extra in variants.items():
+        cfg = config(n, *extra)
+        env = make_env(cfg, num_envs=n)
+        col, upd, _ = collect_and_update(cfg, env, 2 + 1)
+        env.close()
+        var_rows.append({"variant": name, "collection": col, "update": upd,
+                         "loop_estimate": 1 / (1 / col + 1 / upd)})
+        print(json.dumps(var_rows[-1]), flush=True)
+
+    (OUT / "bench_train.json").write_text(json.dumps(
+        {"sizes": rows, "update_variants_at_N": n, "variants": var_rows,
+         "torch_threads": 1, "cpus": os.cpu_count()}, indent=2))
+    lines = ["# Oracle training loop vs its env (frames/s, one run, 1 torch thread, "
+             f"{os.cpu_count()} CPUs)", "",
+             "| N | bare env | collection | update | loop | loop / bare | update share |",
+             "|---|---|---|---|---|---|---|"]
+    lines += [f"| {r['N']} | {r['bare']:.0f} | {r['collection']:.0f} | {r['update']:.0f} | "
+              f"{r['loop']:.0f} | {r['loop_over_bare']:.2f} | {r['update_share']:.0%} |"
+              for r in rows]
+    lines += ["", f"Update variants at N = {n} (epochs x minibatches; the loop estimate is "
+              "collection and update in series)", "",
+              "| variant | collection | update | loop estimate |", "|---|---|---|---|"]
+    lines += [f"| {r['variant']} | {r['collection']:.0f} | {r['update']:.0f} | "
+              f"{r['loop_estimate']:.0f} |" for r in var_rows]
+    (OUT / "bench_train.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()
