@@ -4,10 +4,16 @@
     python run.py robot=g1 trail=ditch
 """
 
-import hydra
-from omegaconf import DictConfig
+import os
+import sys
 
-from legoh.config import register_configs
+if sys.platform.startswith("linux"):  # headless rendering (stand, play): before mujoco loads
+    os.environ.setdefault("MUJOCO_GL", "egl")
+
+import hydra  # noqa: E402
+from omegaconf import DictConfig  # noqa: E402
+
+from legoh.config import register_configs  # noqa: E402
 
 register_configs()
 

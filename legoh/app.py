@@ -23,6 +23,10 @@ def run(cfg: DictConfig) -> None:
         cli.main(cfg, out_dir)
     elif mode == Mode.export:
         export(cfg, out_dir)
+    elif mode == Mode.play:
+        from legoh import play
+
+        play.main(cfg, out_dir)
     else:
         train_and_evaluate(cfg, out_dir)
 

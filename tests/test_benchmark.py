@@ -8,12 +8,22 @@ import numpy as np
 import pytest
 import torch
 from hydra.errors import ConfigCompositionException
+from tensordict.nn import TensorDictModule
 
+from legoh import keys
 from legoh.checkpoint import CheckpointError, make_payload, save_checkpoint
-from legoh.eval.benchmark import OVERALL, compare, evaluate, make_eval_env, run_config
+from legoh.eval.benchmark import (
+    OVERALL,
+    compare,
+    evaluate,
+    make_eval_env,
+    rollout_level,
+    run_config,
+)
 from legoh.eval.cli import build_actor, main
-from legoh.eval.metrics import METRICS, column_title
+from legoh.eval.metrics import METRICS, column_title, distance_walked
 from legoh.eval.plots import plot_trajectories
+from legoh.eval.study import read_overall
 from legoh.modules.actor_critic import OracleInputDims
 from tests.conftest import compose_config
 
@@ -77,6 +87,42 @@ def test_evaluation_results_are_per_category_and_bounded(tiny: tuple) -> None:
     assert 0.0 < overall["TTF"][0] <= 1.0 + 1e-9  # episodes last at most eval.seconds
     assert 0.0 <= overall["SR"][0] <= 100.0 and overall["SR"][1] == 0.0  # one run: std 0
     assert 0 < result["steps"] <= 50  # 1 s at 50 Hz, stopped once every robot is done
+
+
+def test_untrained_policy_walks_about_nowhere(tiny: tuple) -> None:
+    """DW on a real evaluation: 1 s of an untrained policy moves the base by centimetres
+    (a fall would move it by about 1 m), and the CSV carries the column."""
+    _, _, result = tiny
+    mean, std = result["rows"][OVERALL]["DW"]
+    assert np.isfinite(mean) and abs(mean) < 0.5 and std == 0.0
+    assert read_overall(result["paths"]["csv"])["DW"] == pytest.approx(mean)
+
+
+def test_dw_of_a_standing_robot_is_zero_and_matches_its_path(tiny: tuple) -> None:
+    """Zero actions hold the default pose: each robot's DW is ~0 and is exactly
+    distance_walked of its recorded path's first and last points."""
+    cfg = tiny[0]
+    env = make_eval_env(cfg)
+    try:
+        zero = TensorDictModule(lambda obs: torch.zeros(env.action_spec.shape),
+                                in_keys=[keys.PROPRIO], out_keys=[keys.ACTION])
+        rec = rollout_level(env, zero, 0)
+        goal = env.trails.terminus[rec.tile]
+    finally:
+        env.close()
+    walked = rec.outcomes.distance
+    assert np.isfinite(walked).all() and np.abs(walked).max() < 0.1
+    start, end = np.array([p[0] for p in rec.paths]), np.array([p[-1] for p in rec.paths])
+    np.testing.assert_allclose(walked, distance_walked(start, end, goal))
+
+
+def test_a_csv_from_before_dw_still_reads(tmp_path: Path) -> None:
+    cols = [m for m in METRICS if m != "DW"]
+    path = tmp_path / "benchmark.csv"
+    path.write_text(",".join(["category"] + [f"{column_title(m)} mean" for m in cols])
+                    + "\noverall," + ",".join(["1.0"] * len(cols)) + "\n", encoding="utf-8")
+    got = read_overall(path)
+    assert got["SR"] == 1.0 and np.isnan(got["DW"])
 
 
 def test_compare_puts_policies_side_by_side(tiny: tuple) -> None:

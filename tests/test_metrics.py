@@ -10,7 +10,9 @@ from tensordict import TensorDict
 
 from legoh.eval.metrics import (
     METRICS,
+    aggregate,
     column_title,
+    distance_walked,
     episode_metrics,
     robot_outcomes,
     signals_from_rollout,
@@ -75,6 +77,28 @@ def test_metrics_worked_by_hand():
     assert m["MEV"] == pytest.approx(100 * 3 / 19)
     assert m["TTF"] == pytest.approx(0.4)  # (0.3 + 0.4 + 0.5) / 3
     assert m["T2R"] == pytest.approx(0.3)
+    assert math.isnan(m["DW"])  # the signals alone carry no positions
+
+
+def test_distance_walked_by_hand():
+    """Terminus at (10, 0): from (0, 0) to (3, 4) is 10 -> sqrt(49 + 16) closer; standing
+    still is 0; walking from (2, 0) back to (-1, 0) is 8 -> 11, i.e. -3."""
+    start = np.array([[0.0, 0.0], [5.0, 5.0], [2.0, 0.0]])
+    end = np.array([[3.0, 4.0], [5.0, 5.0], [-1.0, 0.0]])
+    got = distance_walked(start, end, np.array([[10.0, 0.0]] * 3))
+    np.testing.assert_allclose(got, [10.0 - math.sqrt(65.0), 0.0, -3.0])
+    # (N, 3) positions: z (height) is ignored
+    z = distance_walked(np.c_[start, [0.0, 1.0, 2.0]], np.c_[end, [9.0, 0.0, 0.0]],
+                        np.array([[10.0, 0.0, 5.0]] * 3))
+    np.testing.assert_allclose(z, got)
+
+
+def test_dw_is_the_mean_over_selected_robots():
+    out = robot_outcomes(waypoint_count=COUNT, dt=DT, distance=np.array([1.0, -0.5, 2.0]),
+                         **three_robots())
+    np.testing.assert_allclose(out.distance, [1.0, -0.5, 2.0])
+    assert aggregate(out)["DW"] == pytest.approx(2.5 / 3)
+    assert aggregate(out, np.array([True, True, False]))["DW"] == pytest.approx(0.25)
 
 
 def test_never_done_counts_as_timeout_at_record_end():
@@ -128,8 +152,8 @@ def test_markdown_table(tmp_path):
     lines = text.splitlines()
     assert lines[0] == "**RandomMix**"
     assert lines[2] == ("| Method | SR (%) ↑ | TC (%) ↑ | TR (%) ↑ | MEV (%) ↓ | TTF (s) ↑ "
-                        "| T2R (s) ↓ |")
-    assert "| EP-H | 16.98 ± 0.85 |" in text and lines[-1].endswith("| n/a |")
+                        "| T2R (s) ↓ | DW (m) ↑ |")
+    assert "| EP-H | 16.98 ± 0.85 |" in text and lines[-1].endswith("| n/a | 30.99 ± 0.95 |")
     assert to_markdown(ROWS).count("\n") == 4
 
 
@@ -139,4 +163,6 @@ def test_csv_table(tmp_path):
     assert rows[0][:3] == ["method", "SR (%) ↑ mean", "SR (%) ↑ std"]
     assert len(rows[0]) == 1 + 2 * len(METRICS) and column_title("MEV") in rows[0][7]
     assert [r[0] for r in rows[1:]] == ["EP-H", "RMA-B"]
-    assert float(rows[1][1]) == 16.98 and rows[2][-1] == "nan"
+    assert rows[0][-2:] == ["DW (m) ↑ mean", "DW (m) ↑ std"]
+    t2r_std = rows[0].index("T2R (s) ↓ std")
+    assert float(rows[1][1]) == 16.98 and rows[2][t2r_std] == "nan"

@@ -16,6 +16,7 @@ from legoh.checkpoint import CheckpointError, load_checkpoint
 from legoh.config import validate
 from legoh.eval.benchmark import evaluate
 from legoh.eval.cli import build_actor
+from legoh.eval.metrics import METRICS
 from legoh.eval.study import STUDIES, study_table
 from legoh.export import load_exported
 from legoh.train.unified import (
@@ -93,7 +94,7 @@ def test_student_benchmark_and_study_table(artefacts, tmp_path):
         torch.manual_seed(seed)
         result = evaluate(cfg, run.student.policy, job, label="ep_h", progress=False,
                           env_fn=student_eval_env_fn(cfg, run.student))
-        assert set(result["rows"]["overall"]) == {"SR", "TC", "TR", "MEV", "TTF", "T2R"}
+        assert set(result["rows"]["overall"]) == set(METRICS)
         (job / ".hydra").mkdir()
         (job / ".hydra" / "config.yaml").write_text(OmegaConf.to_yaml(cfg))
     paths = study_table(sweep, tmp_path / "table", "plugin_hlm")

@@ -32,6 +32,7 @@ class Mode(Enum):
     eval = "eval"
     stand = "stand"
     export = "export"
+    play = "play"
 
 
 @dataclass
@@ -56,12 +57,12 @@ class Config:
     sim: SimConfig = field(default_factory=SimConfig)
     env: EnvConfig = field(default_factory=EnvConfig)
     # train (then evaluate), eval (a checkpoint), stand (a picture), export (a student to
-    # one TorchScript file)
+    # one TorchScript file), play (a video of a checkpoint's oracle hiking)
     mode: Mode = Mode.train
     seed: int = 0
     device: str = "cpu"  # learner and policy: cpu | cuda | cuda:N | auto (envs: CPU)
     resume: str | None = None  # train: a checkpoint to continue from (a killed run resumes)
-    checkpoint: str | None = None  # eval: the policy to evaluate; none: the untrained one
+    checkpoint: str | None = None  # eval, play: the policy; none: the untrained one
     stand_seconds: float = 3.0  # s mode=stand holds the default pose before rendering
     # where stage 2 keeps the oracles it trained, keyed by their config, for reuse
     artefacts: str = "artefacts"

@@ -34,6 +34,7 @@ from legoh.eval.metrics import (
     SIGNALS,
     RobotOutcomes,
     aggregate,
+    distance_walked,
     robot_outcomes,
     summarize,
     to_markdown,
@@ -125,11 +126,12 @@ def rollout_level(env, actor, level: int) -> LevelRecord:
                 break
             td = root
     arr = {k: np.stack(v) for k, v in signals.items()}  # (T, N)
-    out = robot_outcomes(waypoint_count=count, dt=env.dt, **arr)
     t_len = len(pos)
     last = np.where(arr["done"].any(axis=0), arr["done"].argmax(axis=0), t_len - 1)
     track = np.concatenate([start[None], np.stack(pos)])  # (T + 1, N, 3)
     paths = [track[: last[i] + 2, i] for i in range(n)]
+    walked = distance_walked(start, track[last + 1, np.arange(n)], env.trails.terminus[tile])
+    out = robot_outcomes(waypoint_count=count, dt=env.dt, distance=walked, **arr)
     names = np.asarray(env.terrain.categories)[env.category]
     return LevelRecord(level=level, outcomes=out, category=names, tile=tile, paths=paths,
                        steps=t_len)

@@ -1,4 +1,4 @@
-"""The paper's benchmark metrics (SR, TC, TR, MEV, TTF, T2R) as plain functions.
+"""The paper's benchmark metrics (SR, TC, TR, MEV, TTF, T2R), and our DW, as plain functions.
 
 Formulas and the choices the paper leaves open are in ``docs/metrics.md``. In short, each
 robot's **first episode** in the record counts (the steps up to and including its first
@@ -13,9 +13,12 @@ robot's **first episode** in the record counts (the steps up to and including it
 - TTF (s)  = mean_n episode duration_n (the time of the fall, or of the reach, or the
              episode length for robots that neither fall nor reach)
 - T2R (s)  = mean over successful robots of the episode duration (NaN if none succeeded)
+- DW  (m)  = mean_n distance walked toward the terminus: |start_n - terminus_n| -
+             |end_n - terminus_n| in xy (NaN when the record has no positions)
 
 Inputs are per-step arrays of shape (T, N): the ``("next", "info", ...)`` signals of each
-step (the state the step led to, before any auto-reset) and ``("next", "done")``.
+step (the state the step led to, before any auto-reset) and ``("next", "done")``; DW
+also needs each robot's start and end positions (:func:`distance_walked`).
 """
 
 from __future__ import annotations
@@ -27,10 +30,10 @@ from pathlib import Path
 
 import numpy as np
 
-METRICS = ("SR", "TC", "TR", "MEV", "TTF", "T2R")
-UNITS = {"SR": "%", "TC": "%", "TR": "%", "MEV": "%", "TTF": "s", "T2R": "s"}
+METRICS = ("SR", "TC", "TR", "MEV", "TTF", "T2R", "DW")
+UNITS = {"SR": "%", "TC": "%", "TR": "%", "MEV": "%", "TTF": "s", "T2R": "s", "DW": "m"}
 HIGHER_IS_BETTER = {"SR": True, "TC": True, "TR": True, "MEV": False, "TTF": True,
-                    "T2R": False}
+                    "T2R": False, "DW": True}
 SIGNALS = ("reached", "fell", "waypoint", "progress", "edge_contacts", "foot_contacts",
            "unsafe_collisions")
 
@@ -51,13 +54,32 @@ class RobotOutcomes:
     traverse: np.ndarray  # [0, 1]: final progress along the trail (1 for a success)
     violations: np.ndarray  # edge foot-contacts + unsafe-collision steps
     contacts: np.ndarray  # foot-contacts + unsafe-collision steps
+    distance: np.ndarray  # m: distance walked toward the terminus (NaN: no positions)
+
+
+def distance_walked(start_xy: np.ndarray, end_xy: np.ndarray, terminus_xy: np.ndarray
+                    ) -> np.ndarray:
+    """Metres each robot got closer to its terminus: straight-line xy distance from the
+    start minus that from the end position (negative: it moved away). Unlike TTF, it does
+    not credit a robot that merely stands until the time-out.
+
+    Args:
+        start_xy, end_xy, terminus_xy: (N, 2) (or (N, >=2): only x, y are read), world
+            frame, m. end_xy: where the robot is when its first episode ends.
+
+    Returns:
+        (N,) float, m.
+    """
+    start, end, goal = (np.asarray(a, dtype=float)[..., :2]
+                        for a in (start_xy, end_xy, terminus_xy))
+    return np.linalg.norm(goal - start, axis=-1) - np.linalg.norm(goal - end, axis=-1)
 
 
 def robot_outcomes(*, reached: np.ndarray, fell: np.ndarray, waypoint: np.ndarray,
                    progress: np.ndarray, edge_contacts: np.ndarray,
                    foot_contacts: np.ndarray, unsafe_collisions: np.ndarray,
-                   done: np.ndarray, waypoint_count: np.ndarray | int, dt: float
-                   ) -> RobotOutcomes:
+                   done: np.ndarray, waypoint_count: np.ndarray | int, dt: float,
+                   distance: np.ndarray | None = None) -> RobotOutcomes:
     """Per-robot outcomes of each robot's first episode.
 
     Args:
@@ -67,6 +89,8 @@ def robot_outcomes(*, reached: np.ndarray, fell: np.ndarray, waypoint: np.ndarra
         unsafe_collisions: (T, N) int, non-foot bodies touching the world.
         waypoint_count: (N,) or scalar, waypoints of each robot's trail (the terminus is
             the last one). dt: policy step, s.
+        distance: (N,) m, :func:`distance_walked` of each robot's first episode; the
+            signals carry no positions, so without it DW is NaN.
     """
     arrs = [np.asarray(a) for a in (reached, fell, waypoint, progress, edge_contacts,
                                     foot_contacts, unsafe_collisions, done)]
@@ -92,7 +116,9 @@ def robot_outcomes(*, reached: np.ndarray, fell: np.ndarray, waypoint: np.ndarra
     contacts = np.where(in_episode, feet, 0).sum(axis=0) + unsafe_steps
     return RobotOutcomes(success=success, fall=fall, duration=(last + 1) * float(dt),
                          completion=completion, traverse=traverse,
-                         violations=violations.astype(float), contacts=contacts.astype(float))
+                         violations=violations.astype(float), contacts=contacts.astype(float),
+                         distance=(np.full(n, np.nan) if distance is None
+                                   else np.broadcast_to(np.asarray(distance, float), (n,))))
 
 
 def aggregate(out: RobotOutcomes, select: np.ndarray | None = None) -> dict[str, float]:
@@ -109,12 +135,13 @@ def aggregate(out: RobotOutcomes, select: np.ndarray | None = None) -> dict[str,
         "MEV": 100.0 * out.violations[sel].sum() / contacts if contacts > 0 else 0.0,
         "TTF": float(out.duration[sel].mean()),
         "T2R": float(out.duration[wins].mean()) if wins.any() else float("nan"),
+        "DW": float(out.distance[sel].mean()),
     }
 
 
 def episode_metrics(*, waypoint_count: np.ndarray | int, dt: float, groups=None,
                     **signals: np.ndarray) -> dict:
-    """The six metrics of one run.
+    """The metrics of one run (DW is NaN: the signals carry no positions).
 
     Args:
         waypoint_count, dt, signals: as :func:`robot_outcomes` (``reached``, ``fell``,
@@ -124,7 +151,8 @@ def episode_metrics(*, waypoint_count: np.ndarray | int, dt: float, groups=None,
             is ``{label: metrics}`` per label, as in the paper's Table 8.
 
     Returns:
-        ``{"SR": %, "TC": %, "TR": %, "MEV": %, "TTF": s, "T2R": s}`` (or one per group).
+        ``{"SR": %, "TC": %, "TR": %, "MEV": %, "TTF": s, "T2R": s, "DW": m}`` (or one per
+        group).
     """
     out = robot_outcomes(waypoint_count=waypoint_count, dt=dt, **signals)
     if groups is None:
@@ -153,7 +181,8 @@ def signals_from_rollout(td, time_dim: int = -1) -> dict[str, np.ndarray]:
 def summarize(runs: Sequence[Mapping[str, float]]) -> dict[str, tuple[float, float]]:
     """Mean and sample std (ddof=1; 0 for a single run) of each metric over runs.
 
-    NaN values (T2R of a run with no success) are left out of that metric's statistics.
+    NaN values (T2R of a run with no success, DW of a record without positions) are left
+    out of that metric's statistics.
     """
     result = {}
     for m in METRICS:
@@ -177,7 +206,7 @@ def _cell(mean: float, std: float, digits: int) -> str:
 def to_markdown(rows: Rows, label: str = "Method", title: str | None = None,
                 digits: int = 2) -> str:
     """A Markdown table: one row per key of ``rows`` (methods or categories), columns
-    SR, TC, TR, MEV, TTF, T2R as ``mean ± std`` with the better direction in the header."""
+    SR, TC, TR, MEV, TTF, T2R, DW as ``mean ± std`` with the better direction in the header."""
     lines = [f"**{title}**", ""] if title else []
     lines.append("| " + " | ".join([label, *map(column_title, METRICS)]) + " |")
     lines.append("|" + "---|" * (len(METRICS) + 1))

@@ -29,11 +29,12 @@ STUDIES = {  # study -> the config key that names a row of its table
 
 
 def read_overall(path: str | Path, row: str = "overall") -> dict[str, float]:
-    """The mean of each metric in ``row`` of a ``benchmark.csv``."""
+    """The mean of each metric in ``row`` of a ``benchmark.csv``; NaN for a metric the file
+    lacks (one written before DW existed), so old sweeps still gather."""
     with Path(path).open(newline="", encoding="utf-8") as f:
         for rec in csv.DictReader(f):
             if rec["category"] == row:
-                return {m: float(rec[f"{column_title(m)} mean"]) for m in METRICS}
+                return {m: float(rec.get(f"{column_title(m)} mean", "nan")) for m in METRICS}
     raise KeyError(f"{path} has no row {row!r}")
 
 
