@@ -3,7 +3,7 @@
 from pathlib import Path
 
 from hydra.core.hydra_config import HydraConfig
-from omegaconf import DictConfig
+from omegaconf import DictConfig, OmegaConf
 
 
 def run(cfg: DictConfig) -> None:
@@ -70,7 +70,10 @@ def train_and_evaluate(cfg: DictConfig, out_dir: Path) -> None:
 
 def export_meta(cfg: DictConfig) -> dict:
     """What a deployment needs besides the network: robot, action scale, depth range."""
-    return {"robot": cfg.robot.name, "action_scale": float(cfg.robot.action_scale),
+    from legoh.envs.robots import build_robot_spec
+
+    _, info = build_robot_spec(OmegaConf.to_object(cfg.robot))
+    return {"robot": cfg.robot.name, "action_scale": info.action_scale.tolist(),
             "action_clip": float(cfg.env.action_clip), "policy_hz": 1.0 / (
                 cfg.sim.dt * cfg.sim.decimation),
             "depth_every": int(cfg.env.depth.every), "algo": cfg.algo.name}
