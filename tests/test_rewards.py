@@ -37,7 +37,7 @@ def neutral(**changes: object) -> StepState:
         air_time_target=0.5, feet_on_edge=zeros((N, F), dtype=bool),
         unsafe_contacts=zeros(N, dtype=np.int64), level=zeros(N, dtype=np.int64),
         command=zeros((N, 2)), tracking_sigma=0.25, stance=np.ones((N, F), dtype=bool),
-        feet_height=zeros((N, F)), swing_height=0.08,
+        feet_height=zeros((N, F)), swing_height=0.08, swing_target=zeros((N, F)),
     )
     return replace(state, **changes)
 
@@ -113,6 +113,10 @@ CASES: dict[str, tuple[dict, list[float], str]] = {
         {"feet_contact": np.array([[False, True], [False, True]]),
          "feet_height": rows([0.08, 0.5], [0.0, 0.5])},
         [0.0, 0.0064], "airborne feet only, squared error to the swing height"),
+    "feet_phase": (
+        {"swing_target": rows([0.0, 0.0], [0.05, 0.0]), "feet_height": rows([0.0, 0.0],
+                                                                          [0.0, 0.0])},
+        [1.0, np.exp(-0.5)], "1 on the clock's foot lift, exp(-err^2 / 0.005) off it"),
 }
 
 
@@ -133,7 +137,7 @@ def test_neutral_state_has_no_penalty() -> None:
     # facing the goal; far from the terminus; on command (standing); alive; feet down as
     # the (standing) clock asks
     bonuses = {"tracking_yaw", "pn_distance", "tracking_lin_vel", "tracking_ang_vel", "alive",
-               "feet_contact_phase"}
+               "feet_contact_phase", "feet_phase"}
     for name, fn in REWARD_TERMS.items():
         if name not in bonuses:
             np.testing.assert_allclose(fn(state), 0.0, atol=1e-6, err_msg=name)

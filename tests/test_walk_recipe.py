@@ -170,7 +170,7 @@ def test_per_joint_action_scale_from_effort() -> None:
     env = make_env(cfg_of(), num_envs=2)
     r = env.robot
     a = r.num_actions
-    np.testing.assert_allclose(r.action_scale, 0.25 * r.torque_limit[:a] / r.kp[:a])
+    np.testing.assert_allclose(r.action_scale, 0.5 * r.torque_limit[:a] / r.kp[:a])
     env.close()
     fixed = make_env(cfg_of("robot.effort_action_scale=null"), num_envs=2)
     np.testing.assert_allclose(fixed.robot.action_scale, 0.25)

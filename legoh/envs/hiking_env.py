@@ -440,7 +440,11 @@ class HikingEnv(EnvBase):
         lift = feet_z - self.terrain.height_at(feet_xy.reshape(-1, 2)).reshape(
             self.num_envs, nf) - self.feet_rest_height
         standing = self.command_speed[:, None] == 0
-        stance = (self._gait_phase() < self.cfg.gait.stance) | standing
+        gait = self.cfg.gait
+        phase = self._gait_phase()
+        stance = (phase < gait.stance) | standing
+        swing = np.clip((phase - gait.stance) / (1.0 - gait.stance), 0.0, 1.0)
+        target = np.where(stance, 0.0, gait.swing_height * np.sin(np.pi * swing))
         return StepState(
             dt=self.dt,
             lin_vel_body=math3d.world_to_body(rot, qvel[:, 0:3]),
@@ -463,7 +467,7 @@ class HikingEnv(EnvBase):
             unsafe_contacts=(sd[:, :, sl.unsafe_found] > 0).any(axis=1).sum(axis=1),
             level=self.level, command=self.command.copy(),
             tracking_sigma=self.cfg.tracking_sigma, stance=stance, feet_height=lift,
-            swing_height=self.cfg.gait.swing_height,
+            swing_height=gait.swing_height, swing_target=target,
         )
 
     def _edge_at(self, xy: np.ndarray) -> np.ndarray:

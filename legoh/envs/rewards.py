@@ -57,6 +57,7 @@ class StepState:
     stance: np.ndarray  # (N, F) bool: the gait clock wants this foot on the ground
     feet_height: np.ndarray  # (N, F) m: foot lift above its standing height
     swing_height: float  # m
+    swing_target: np.ndarray  # (N, F) m: the lift the gait clock asks for now
 
 
 RewardTerm = Callable[[StepState], np.ndarray]
@@ -228,6 +229,13 @@ def feet_contact_phase(s: StepState) -> np.ndarray:
 def feet_swing_height(s: StepState) -> np.ndarray:
     """sum over airborne feet of (lift - swing height)^2."""
     return np.sum((s.feet_height - s.swing_height) ** 2 * ~s.feet_contact, axis=1)
+
+
+@reward_term
+def feet_phase(s: StepState) -> np.ndarray:
+    """exp(-sum (lift - clock's lift)^2 / 0.005): MuJoCo Playground's feet-phase term, a dense
+    signal for stepping (the contact match pays only once a foot is off the ground)."""
+    return np.exp(-np.sum((s.feet_height - s.swing_target) ** 2, axis=1) / 0.005)
 
 
 def preset_weights(preset: str, overrides: dict[str, float | None],
