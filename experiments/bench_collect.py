@@ -41,7 +41,7 @@ import torchrl  # noqa: E402
 from hydra import compose, initialize_config_dir  # noqa: E402
 
 from legoh.config import register_configs  # noqa: E402
-from legoh.eval.benchmark import torch_threads  # noqa: E402
+from legoh.threads import torch_threads  # noqa: E402
 from legoh.train.oracle import train_oracle  # noqa: E402
 
 print = functools.partial(print, flush=True)  # noqa: A001 - progress shows as it happens

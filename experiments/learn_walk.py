@@ -29,7 +29,8 @@ from omegaconf import OmegaConf  # noqa: E402
 
 from legoh.config import register_configs  # noqa: E402
 from legoh.envs.hiking_env import make_env  # noqa: E402
-from legoh.eval.benchmark import rollout_level, torch_threads  # noqa: E402
+from legoh.eval.benchmark import rollout_level  # noqa: E402
+from legoh.threads import torch_threads  # noqa: E402
 from legoh.train.oracle import train_oracle  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -30,8 +30,9 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type, step_mdp  
 
 from legoh import keys  # noqa: E402
 from legoh.envs.robots import ROBOT_GEOM_GROUP  # noqa: E402
-from legoh.eval.benchmark import make_eval_env, torch_threads  # noqa: E402
+from legoh.eval.benchmark import make_eval_env  # noqa: E402
 from legoh.eval.metrics import distance_walked  # noqa: E402
+from legoh.threads import torch_threads  # noqa: E402
 
 WIDTH, HEIGHT = 320, 240  # px: ~0.06 s a frame with software EGL (FollowCamera)
 RENDER_EVERY = 2  # policy steps per frame: 50 Hz policy -> 25 fps, real time

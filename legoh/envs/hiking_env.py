@@ -24,11 +24,11 @@ from torchrl.envs import EnvBase
 
 from legoh import keys
 from legoh.config import EnvConfig, RobotConfig, SimConfig, TrailConfig
+from legoh.config.env import REWARD_PRESETS
 from legoh.envs import math3d
 from legoh.envs.batched_sim import BatchedSim
 from legoh.envs.curriculum import update_levels
 from legoh.envs.randomization import build_model_pool, draw_physics
-from legoh.config.env import REWARD_PRESETS
 from legoh.envs.rewards import StepState, active_terms, compute_rewards, preset_weights
 from legoh.envs.scene import Scene, build_scene
 from legoh.envs.sensors import DepthRaycaster

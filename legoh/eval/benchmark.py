@@ -18,8 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable, Iterator, Mapping
-from contextlib import contextmanager
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
@@ -41,6 +40,7 @@ from legoh.eval.metrics import (
     write_csv,
 )
 from legoh.eval.plots import outcome_labels, plot_trajectories
+from legoh.threads import torch_threads
 
 OVERALL = "overall"
 
@@ -86,18 +86,6 @@ def make_eval_env(cfg: DictConfig, run: int = 0):
 
     run_cfg, robots, overrides = eval_env_settings(cfg, run)
     return make_env(run_cfg, num_envs=robots, evaluation=True, **overrides)
-
-
-@contextmanager
-def torch_threads(n: int) -> Iterator[None]:
-    """Run torch ops on ``n`` threads inside the block. A small MLP on a few hundred rows
-    runs ~20x slower on 2 threads than on 1 when the cores are busy (physics, other jobs)."""
-    old = torch.get_num_threads()
-    torch.set_num_threads(n)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(old)
 
 
 def rollout_level(env, actor, level: int) -> LevelRecord:

@@ -79,7 +79,7 @@ def train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None = None,
     ``on_iteration(it, stats, actor)``, if given, runs after each iteration is logged (the
     learn-to-walk benchmark evaluates milestones there); returning True stops training.
     """
-    from legoh.eval.benchmark import torch_threads
+    from legoh.threads import torch_threads
 
     with torch_threads(cfg.algo.torch_threads):
         return _train_oracle(cfg, out_dir, resume, on_iteration)

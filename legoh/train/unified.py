@@ -266,7 +266,7 @@ def distill_step(student: Student, batch, cfg: DictConfig, optim, prior_loss) ->
 
 def train_student(cfg: DictConfig, out_dir: Path, resume: str | None = None) -> StudentRun:
     """Train ``cfg.algo.student`` for ``cfg.algo.total_frames`` env steps."""
-    from legoh.eval.benchmark import torch_threads
+    from legoh.threads import torch_threads
 
     with torch_threads(cfg.algo.torch_threads):
         return _train_student(cfg, out_dir, resume)
