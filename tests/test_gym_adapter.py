@@ -23,7 +23,8 @@ def env() -> Iterator[HikingGymEnv]:
 
 def test_spaces(env: HikingGymEnv) -> None:
     assert set(env.observation_space.spaces) == {"proprio", "proprio_history", "scandots",
-                                                 "privileged", "goal", "depth", "depth_fresh"}
+                                                 "privileged", "goal", "command", "depth",
+                                                 "depth_fresh"}
     depth = env.observation_space["depth"]
     assert depth.low.min() == -0.5 and depth.high.max() == 0.5
     assert env.action_space.shape == (env.env.num_actions,)

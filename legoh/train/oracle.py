@@ -134,7 +134,7 @@ def _train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None,
         with torch.no_grad():
             gae(batch)
         stats = ppo_update(loss, optimizer, batch.reshape(-1), algo, gen, actor=actor)
-        adapt = adaptation_loss(adaptation, actor, batch.reshape(-1))
+        adapt = adaptation_loss(adaptation, actor, batch.reshape(-1), gen)
         adapt_optim.zero_grad()
         adapt.backward()
         adapt_optim.step()
