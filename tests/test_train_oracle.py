@@ -48,6 +48,22 @@ def test_resume_continues_from_the_checkpoint(tmp_path: Path) -> None:
     assert any(not torch.equal(saved[k], resumed[k]) for k in saved)  # it trained on
 
 
+def test_resume_past_the_budget_ends_at_once(tmp_path: Path, capsys) -> None:
+    """A budget below the checkpoint's progress means no more frames, said in a message.
+
+    Failed before with: the collector got a negative frame budget (torchrl: endless) and
+    collected on; the guard below caught iteration 3 of a 1-iteration budget."""
+    first = train_oracle(compose_config(*TINY, "algo.total_frames=64"), tmp_path)
+    assert first.iterations == 2
+    cfg = compose_config(*TINY, "algo.total_frames=32", f"resume={first.checkpoint}")
+    calls = []
+    run = train_oracle(cfg, tmp_path, resume=cfg.resume,
+                       on_iteration=lambda it, *_: calls.append(it) or True)
+    assert calls == [] and run.iterations == 2
+    assert "no more frames to collect" in capsys.readouterr().out
+    assert load_checkpoint(run.checkpoint)["iteration"] == 2
+
+
 def test_resume_into_another_robot_is_refused(tmp_path: Path) -> None:
     first = train_oracle(compose_config(*TINY, "algo.total_frames=32"), tmp_path / "h1")
     cfg = compose_config(*TINY, "robot=g1", "algo.total_frames=64")

@@ -29,6 +29,7 @@ from legoh.modules.actor_critic import (
 from legoh.modules.encoders import make_adaptation_module
 from legoh.objectives.adaptation import adaptation_loss
 from legoh.objectives.ppo import make_ppo, ppo_update
+from legoh.runs import iterations_left
 from legoh.train.collect import make_collector, policy_device, sync_weights
 
 
@@ -111,8 +112,9 @@ def _train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None,
 
     frames_per_batch = algo.num_envs * algo.steps_per_env
     iterations = max(1, algo.total_frames // frames_per_batch)
+    left = iterations_left(start, iterations, frames_per_batch, algo.total_frames, resume)
     collector = make_collector(cfg, functools.partial(make_env, cfg), actor, frames_per_batch,
-                               (iterations - start) * frames_per_batch, env=env)
+                               left * frames_per_batch, env=env)
     csv = ScalarCSV(out_dir / "train.csv", resume=bool(resume))
     mcap = McapLog(out_dir, stem="train")
     ckpt_path = out_dir / "oracle.pt"

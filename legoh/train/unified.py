@@ -35,6 +35,7 @@ from legoh.modules.actor_critic import LOC
 from legoh.modules.students import Student, StudentDims, make_student, unroll
 from legoh.objectives.distill import distillation_loss
 from legoh.objectives.ppo import make_ppo, ppo_update
+from legoh.runs import iterations_left
 from legoh.train.oracle import (
     batch_scalars,
     build_oracle,
@@ -310,10 +311,11 @@ def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None) -> Studen
 
     frames_per_batch = algo.num_envs * algo.steps_per_env
     iterations = max(1, algo.total_frames // frames_per_batch)
+    left = iterations_left(start, iterations, frames_per_batch, algo.total_frames, resume)
     collector = make_collector(cfg, functools.partial(make_student_env, cfg,
                                                       state_shapes=shapes),
                                student.policy, frames_per_batch,
-                               (iterations - start) * frames_per_batch, env=env)
+                               left * frames_per_batch, env=env)
     csv = ScalarCSV(out_dir / "train.csv", resume=bool(resume))
     mcap = McapLog(out_dir, stem="train")
     ckpt_path = out_dir / f"{algo.name}.pt"
