@@ -322,3 +322,13 @@ def test_depth_frames_are_reproducible() -> None:
         finally:
             env.close()
     assert torch.equal(frames[0], frames[1])
+
+
+def test_make_env_refuses_unknown_settings() -> None:
+    """A misspelled override to make_env is refused, naming it.
+
+    Failed before with: DID NOT RAISE (setattr made a dead attribute; the env ran with 20 s)."""
+    from legoh.envs.hiking_env import make_env
+
+    with pytest.raises(TypeError, match=r"unknown env setting\(s\) \['epsiode_length_s'\]"):
+        make_env(compose_config("trail=flat"), num_envs=1, epsiode_length_s=5.0)

@@ -615,6 +615,10 @@ def make_env(cfg, num_envs: int | None = None, evaluation: bool = False, **overr
     env_cfg: EnvConfig = OmegaConf.to_object(cfg.env)
     if num_envs is not None:
         env_cfg.num_envs = num_envs
+    known = set(env_cfg.__dataclass_fields__)  # a typo would otherwise set a dead attribute
+    if unknown := sorted(set(overrides) - known):
+        raise TypeError(f"make_env: unknown env setting(s) {unknown}; EnvConfig has "
+                        f"{sorted(known)}")
     for key, value in overrides.items():
         setattr(env_cfg, key, value)
     return HikingEnv(OmegaConf.to_object(cfg.robot), OmegaConf.to_object(cfg.trail), env_cfg,
