@@ -1,10 +1,17 @@
-"""Run bookkeeping shared by the training stages: the frame budget left to a resumed run.
+"""Run bookkeeping shared by the training stages: the frame budget left to a resumed run,
+a clean stop on SIGINT / SIGTERM.
 
 Kept apart from the loops (``legoh/train/``) so each rule is one small function a test can
 call, and the loops only ask it.
 """
 
 from __future__ import annotations
+
+import shlex
+import signal
+import threading
+from collections.abc import Iterable, Iterator
+from pathlib import Path
 
 
 def iterations_left(start: int, iterations: int, frames_per_batch: int, total_frames: int,
@@ -22,3 +29,71 @@ def iterations_left(start: int, iterations: int, frames_per_batch: int, total_fr
               f"iteration(s) of {frames_per_batch} frames): no more frames to collect; pass "
               f"algo.total_frames above {start * frames_per_batch} to train on")
     return max(0, left)
+
+
+class GracefulStop:
+    """SIGINT / SIGTERM during training: finish the iteration under way, then stop cleanly.
+
+    Killing a run mid-iteration lost everything since its last periodic checkpoint and left
+    an MCAP segment without its summary (unreadable to the stock ``mcap`` reader). Inside
+    ``with GracefulStop() as stop`` the first signal only sets :attr:`signum`;
+    :meth:`batches` then ends the loop after the current iteration, the trainer writes its
+    checkpoint and closes its logs, and :meth:`exit_if_signalled` prints how to resume and
+    exits with 128 + the signal number. A second signal raises ``KeyboardInterrupt`` at once.
+    Handlers are installed only in the main thread (Python allows no other); the previous
+    ones come back on exit, so nested stages (stage 2 training its oracle) nest.
+    """
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self) -> None:
+        self.signum: int | None = None
+        self._previous: dict[int, object] = {}
+
+    def __enter__(self) -> GracefulStop:
+        if threading.current_thread() is threading.main_thread():
+            for sig in self.SIGNALS:
+                self._previous[sig] = signal.signal(sig, self._handle)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+        self._previous.clear()
+
+    def _handle(self, signum: int, frame: object) -> None:
+        if self.signum is not None:
+            raise KeyboardInterrupt(f"second {signal.Signals(signum).name}: stopping at once")
+        self.signum = signum
+        print(f"\n[legoh] {signal.Signals(signum).name}: finishing this iteration, then a "
+              f"checkpoint (send it again to stop at once, losing the iteration)", flush=True)
+
+    def batches(self, collector: Iterable) -> Iterator:
+        """``collector``'s batches until a signal came (checked after each iteration)."""
+        for batch in collector:
+            yield batch
+            if self.signum is not None:
+                return
+
+    def exit_if_signalled(self, checkpoint: Path, hint: str | None = None) -> None:
+        """After the trainer saved ``checkpoint`` and closed its logs: say how to resume
+        (``hint``, default :func:`resume_command`) and exit with 128 + the signal number."""
+        if self.signum is None:
+            return
+        name = signal.Signals(self.signum).name
+        print(f"[legoh] stopped by {name}: checkpoint {checkpoint}, logs closed. Resume with:\n"
+              f"    {hint or resume_command(checkpoint)}", flush=True)
+        raise SystemExit(128 + self.signum)
+
+
+def resume_command(checkpoint: Path | None) -> str:
+    """``python run.py <this run's overrides> resume=<checkpoint>``: the command that
+    continues this run (outside Hydra the overrides are unknown: only ``resume=``). With no
+    checkpoint: this run's own command without ``resume=``."""
+    from hydra.core.hydra_config import HydraConfig
+
+    args = []
+    if HydraConfig.initialized():
+        args = [o for o in HydraConfig.get().overrides.task if not o.startswith("resume=")]
+    tail = [] if checkpoint is None else [f"resume={checkpoint}"]
+    return shlex.join(["python", "run.py", *args, *tail])

@@ -29,7 +29,7 @@ from legoh.modules.actor_critic import (
 from legoh.modules.encoders import make_adaptation_module
 from legoh.objectives.adaptation import adaptation_loss
 from legoh.objectives.ppo import make_ppo, ppo_update
-from legoh.runs import iterations_left
+from legoh.runs import GracefulStop, iterations_left
 from legoh.train.collect import make_collector, policy_device, sync_weights
 
 
@@ -74,20 +74,23 @@ def batch_scalars(batch) -> dict[str, float]:
 
 
 def train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None = None,
-                 on_iteration=None) -> OracleRun:
+                 on_iteration=None, resume_hint: str | None = None) -> OracleRun:
     """Train the oracle for ``cfg.algo.total_frames`` env steps; returns the trained actor.
 
     ``on_iteration(it, stats, actor)``, if given, runs after each iteration is logged (the
     learn-to-walk benchmark evaluates milestones there); returning True stops training.
+    SIGINT / SIGTERM end the run after the iteration under way with a checkpoint, closed
+    logs and the command that resumes it (``resume_hint``; default ``python run.py ...
+    resume=<checkpoint>``), then exit (:class:`legoh.runs.GracefulStop`).
     """
     from legoh.eval.benchmark import torch_threads
 
-    with torch_threads(cfg.algo.torch_threads):
-        return _train_oracle(cfg, out_dir, resume, on_iteration)
+    with torch_threads(cfg.algo.torch_threads), GracefulStop() as stop:
+        return _train_oracle(cfg, out_dir, resume, on_iteration, stop, resume_hint)
 
 
 def _train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None,
-                  on_iteration=None) -> OracleRun:
+                  on_iteration, stop: GracefulStop, resume_hint: str | None) -> OracleRun:
     algo = cfg.algo
     out_dir.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(cfg.seed)
@@ -130,7 +133,7 @@ def _train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None,
     bar = tqdm(total=iterations, initial=start, desc="oracle PPO", unit="it")
     it = start
     tick = time.perf_counter()
-    for batch in collector:
+    for batch in stop.batches(collector):
         # (envs, time) on the learner's device, whatever the collector
         batch = batch.reshape(-1, batch.shape[-1]).to(device)
         with torch.no_grad():
@@ -160,8 +163,9 @@ def _train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None,
     collector.shutdown()
     csv.close()
     mcap.close()
-    if it == start:  # nothing left to train: still leave a checkpoint behind
+    if it == start or stop.signum:  # nothing trained, or a signal: leave a checkpoint behind
         checkpoint(it)
+    stop.exit_if_signalled(ckpt_path, resume_hint)
     return OracleRun(actor=actor, checkpoint=ckpt_path, csv=csv.path, mcap=mcap.path,
                      iterations=it)
 

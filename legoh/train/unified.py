@@ -35,7 +35,7 @@ from legoh.modules.actor_critic import LOC
 from legoh.modules.students import Student, StudentDims, make_student, unroll
 from legoh.objectives.distill import distillation_loss
 from legoh.objectives.ppo import make_ppo, ppo_update
-from legoh.runs import iterations_left
+from legoh.runs import GracefulStop, iterations_left, resume_command
 from legoh.train.oracle import (
     batch_scalars,
     build_oracle,
@@ -93,7 +93,8 @@ def ensure_oracle(cfg: DictConfig) -> Path:
     print(f"[legoh] no oracle given: training one ({stage1.algo.total_frames} frames) in {out}")
     out.mkdir(parents=True, exist_ok=True)
     (out / "config.yaml").write_text(OmegaConf.to_yaml(stage1, resolve=True))
-    run = train_oracle(stage1, out, resume=resume)
+    hint = f"{resume_command(None)}   # the same command: it resumes the oracle in {out}"
+    run = train_oracle(stage1, out, resume=resume, resume_hint=hint)
     done.write_text(f"{run.iterations} iterations\n")
     return run.checkpoint
 
@@ -269,11 +270,12 @@ def train_student(cfg: DictConfig, out_dir: Path, resume: str | None = None) -> 
     """Train ``cfg.algo.student`` for ``cfg.algo.total_frames`` env steps."""
     from legoh.eval.benchmark import torch_threads
 
-    with torch_threads(cfg.algo.torch_threads):
-        return _train_student(cfg, out_dir, resume)
+    with torch_threads(cfg.algo.torch_threads), GracefulStop() as stop:
+        return _train_student(cfg, out_dir, resume, stop)
 
 
-def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None) -> StudentRun:
+def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None,
+                   stop: GracefulStop) -> StudentRun:
     from legoh.train.collect import make_collector, policy_device, sync_weights
 
     algo = cfg.algo
@@ -331,7 +333,7 @@ def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None) -> Studen
 
     bar = tqdm(total=iterations, initial=start, desc=f"{algo.name} ({algo.student})", unit="it")
     it, tick = start, time.perf_counter()
-    for batch in collector:
+    for batch in stop.batches(collector):
         clock = {"collect": time.perf_counter()}
         batch = batch.reshape(-1, batch.shape[-1]).to(device)  # (envs, time) on the learner
         label_with_oracle(oracle, batch)
@@ -367,8 +369,9 @@ def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None) -> Studen
     collector.shutdown()
     csv.close()
     mcap.close()
-    if it == start:
+    if it == start or stop.signum:  # nothing trained, or a signal: leave a checkpoint behind
         checkpoint(it)
+    stop.exit_if_signalled(ckpt_path)
     return StudentRun(student=student, checkpoint=ckpt_path, csv=csv.path, mcap=mcap.path,
                       iterations=it, oracle=oracle_path)
 

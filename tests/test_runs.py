@@ -1,0 +1,66 @@
+"""Run bookkeeping (legoh/runs.py): a resumed run's budget, a clean stop on a signal."""
+
+import csv
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from mcap.reader import make_reader
+
+from legoh.checkpoint import load_checkpoint
+
+ROOT = Path(__file__).resolve().parents[1]
+TINY_RUN = ("trail=flat", "trail.levels=1", "trail.variants=1", "algo.num_envs=4",
+            "algo.steps_per_env=8", "algo.epochs=1", "algo.minibatches=2",
+            "algo.total_frames=320000", "algo.checkpoint_every=1000",
+            "algo.trajectory_every=1")
+
+
+def start_run(out: Path, *overrides: str) -> subprocess.Popen:
+    """``python run.py`` in a subprocess (a real process to signal), output into ``out``."""
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    return subprocess.Popen([sys.executable, "run.py", *TINY_RUN, *overrides,
+                             f"hydra.run.dir={out}"], cwd=ROOT, env=env, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+
+
+def wait_for_rows(path: Path, rows: int, proc: subprocess.Popen, timeout: float = 240) -> None:
+    """Until ``path`` (a CSV) holds ``rows`` data rows; fails if the run ends first."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if path.is_file() and len(path.read_text().splitlines()) > rows:
+            return
+        if proc.poll() is not None:
+            pytest.fail(f"the run ended early:\n{proc.stdout.read()}")
+        time.sleep(0.2)
+    proc.kill()
+    pytest.fail("the run wrote no rows in time")
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_leaves_a_checkpoint_closed_logs_and_the_resume_command(tmp_path, sig):
+    """Ctrl-C (SIGINT) or SIGTERM mid-run: a final checkpoint at the last finished
+    iteration, an MCAP the stock reader opens through its summary, the command to resume.
+
+    Failed before with: SIGINT: KeyboardInterrupt traceback, no checkpoint (the periodic one
+    was 1000 iterations away), an MCAP without summary; SIGTERM: killed outright, the same."""
+    out = tmp_path / "run"
+    proc = start_run(out)
+    wait_for_rows(out / "train.csv", 2, proc)
+    proc.send_signal(sig)
+    text, _ = proc.communicate(timeout=120)
+    assert proc.returncode == 128 + sig, text
+    with (out / "train.csv").open() as f:
+        done = [int(row["iteration"]) for row in csv.DictReader(f)]
+    assert load_checkpoint(out / "oracle.pt")["iteration"] == done[-1]
+    with (out / "train-000.mcap").open("rb") as f:
+        reader = make_reader(f)
+        assert reader.get_summary() is not None  # finished: summary and footer written
+        scalars = [m for _, ch, m in reader.iter_messages() if ch.topic == "scalars"]
+    assert len(scalars) == len(done)
+    assert f"python run.py {' '.join(TINY_RUN)}" in text
+    assert f"resume={out / 'oracle.pt'}" in text
