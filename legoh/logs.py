@@ -12,7 +12,7 @@ scalar names, sorted). A later row with a **new** name is refused with a ``Value
 naming it (a column that appears halfway would leave a ragged, misleading file: log every
 scalar from the first iteration, with NaN if it has no value yet); a missing name is
 written as an empty cell. ``resume=True`` appends to an existing file under its header;
-``resume=False`` refuses to overwrite one.
+``resume=False`` refuses to overwrite one, naming the command that continues that run.
 
 MCAP (:class:`McapLog`): JSON messages with JSON-schema schemas on two channels,
 ``scalars`` (one message per iteration) and ``trajectory`` (one message per step of a
@@ -59,7 +59,8 @@ class ScalarCSV:
         self.columns: list[str] | None = None
         if self.path.exists() and self.path.stat().st_size > 0:
             if not resume:
-                raise FileExistsError(f"{self.path} exists; pass resume=True to append to it")
+                raise FileExistsError(f"{self.path} exists: another run wrote into this "
+                                      f"folder. {_continue_hint(self.path.parent)}")
             with self.path.open(newline="", encoding="utf-8") as f:
                 self.columns = next(csv.reader(f))
         self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -89,6 +90,14 @@ class ScalarCSV:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def _continue_hint(folder: Path) -> str:
+    """The command that continues the run in ``folder`` (its checkpoint named when there is
+    one), or how to start a fresh run elsewhere."""
+    ckpt = next(iter(sorted(folder.glob("*.pt"))), folder / "<checkpoint>.pt")
+    return (f"Continue it with `python run.py <its overrides> resume={ckpt}`, or start a "
+            f"new run in another folder (hydra.run.dir=...)")
 
 
 SCALARS_SCHEMA = {

@@ -1,5 +1,5 @@
 """Run bookkeeping shared by the training stages: the frame budget left to a resumed run,
-a clean stop on SIGINT / SIGTERM.
+a clean stop on SIGINT / SIGTERM, a lock on the run folder.
 
 Kept apart from the loops (``legoh/train/``) so each rule is one small function a test can
 call, and the loops only ask it.
@@ -7,11 +7,18 @@ call, and the loops only ask it.
 
 from __future__ import annotations
 
+import contextlib
+import os
 import shlex
 import signal
 import threading
 from collections.abc import Iterable, Iterator
 from pathlib import Path
+
+try:
+    import fcntl
+except ImportError:  # pragma: no cover - Windows
+    fcntl = None
 
 
 def iterations_left(start: int, iterations: int, frames_per_batch: int, total_frames: int,
@@ -97,3 +104,42 @@ def resume_command(checkpoint: Path | None) -> str:
         args = [o for o in HydraConfig.get().overrides.task if not o.startswith("resume=")]
     tail = [] if checkpoint is None else [f"resume={checkpoint}"]
     return shlex.join(["python", "run.py", *args, *tail])
+
+
+class RunFolderBusy(RuntimeError):
+    """Another live process holds the run folder's lock."""
+
+
+LOCK_NAME = ".legoh.lock"
+
+
+@contextlib.contextmanager
+def run_lock(folder: Path) -> Iterator[Path]:
+    """Hold an exclusive lock on ``folder`` (``.legoh.lock`` in it) while a run writes there.
+
+    Two runs into one folder interleaved their CSV rows and checkpoints; the second one is
+    now refused at once, naming the folder and the holder's pid. ``flock`` dies with its
+    process (a killed run leaves no stale lock) and conflicts between any two opens, in one
+    process or two. Where ``fcntl`` is missing (Windows) nothing is locked.
+    """
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / LOCK_NAME
+    with path.open("a+") as f:
+        if fcntl is not None:
+            try:
+                fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                f.seek(0)
+                holder = f.read().strip() or "?"
+                raise RunFolderBusy(f"{folder} is in use by another run (pid {holder}); wait "
+                                    f"for it, or write elsewhere (hydra.run.dir=...)") from None
+        f.seek(0)
+        f.truncate()
+        f.write(f"{os.getpid()}\n")
+        f.flush()
+        try:
+            yield path
+        finally:
+            if fcntl is not None:
+                fcntl.flock(f, fcntl.LOCK_UN)

@@ -64,3 +64,41 @@ def test_a_signal_leaves_a_checkpoint_closed_logs_and_the_resume_command(tmp_pat
     assert len(scalars) == len(done)
     assert f"python run.py {' '.join(TINY_RUN)}" in text
     assert f"resume={out / 'oracle.pt'}" in text
+
+
+def test_a_second_run_into_a_held_folder_is_refused(tmp_path):
+    """A run into the folder of a live run is refused at once, naming the folder.
+
+    Failed before with: FileExistsError "... pass resume=True" (train.csv existed; nothing said
+    a run was live); two runs started in the same instant both appended to one train.csv."""
+    from legoh.train.oracle import train_oracle
+    from tests.conftest import compose_config
+
+    out = tmp_path / "run"
+    proc = start_run(out)
+    try:
+        wait_for_rows(out / "train.csv", 1, proc)
+        rows = len((out / "train.csv").read_text().splitlines())
+        # legoh.runs.RunFolderBusy, a RuntimeError
+        with pytest.raises(RuntimeError, match=rf"{out} is in use by another run \(pid "
+                                                rf"{proc.pid}\)"):
+            train_oracle(compose_config(*TINY_RUN), out)
+        assert len((out / "train.csv").read_text().splitlines()) >= rows
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        proc.communicate(timeout=120)
+
+
+def test_default_run_folders_do_not_collide() -> None:
+    """The default run and sweep folders go down to the microsecond.
+
+    Failed before with: Hydra's default outputs/<date>/<H-M-S>: two runs started in the same
+    second shared a folder."""
+    from hydra import compose, initialize_config_dir
+
+    from tests.conftest import CONF_DIR
+
+    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+        hydra_cfg = compose("config", return_hydra_config=True).hydra
+    for node in (hydra_cfg.run, hydra_cfg.sweep):
+        assert "%f" in str(node._get_node("dir")._value())

@@ -29,7 +29,7 @@ from legoh.modules.actor_critic import (
 from legoh.modules.encoders import make_adaptation_module
 from legoh.objectives.adaptation import adaptation_loss
 from legoh.objectives.ppo import make_ppo, ppo_update
-from legoh.runs import GracefulStop, iterations_left
+from legoh.runs import GracefulStop, iterations_left, run_lock
 from legoh.train.collect import make_collector, policy_device, sync_weights
 
 
@@ -81,11 +81,12 @@ def train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None = None,
     learn-to-walk benchmark evaluates milestones there); returning True stops training.
     SIGINT / SIGTERM end the run after the iteration under way with a checkpoint, closed
     logs and the command that resumes it (``resume_hint``; default ``python run.py ...
-    resume=<checkpoint>``), then exit (:class:`legoh.runs.GracefulStop`).
+    resume=<checkpoint>``), then exit (:class:`legoh.runs.GracefulStop`). A second run into
+    ``out_dir`` while this one lives is refused (:func:`legoh.runs.run_lock`).
     """
     from legoh.eval.benchmark import torch_threads
 
-    with torch_threads(cfg.algo.torch_threads), GracefulStop() as stop:
+    with run_lock(out_dir), torch_threads(cfg.algo.torch_threads), GracefulStop() as stop:
         return _train_oracle(cfg, out_dir, resume, on_iteration, stop, resume_hint)
 
 
