@@ -1,5 +1,5 @@
 """Run bookkeeping shared by the training stages: the frame budget left to a resumed run,
-a clean stop on SIGINT / SIGTERM, a lock on the run folder.
+a clean stop on SIGINT / SIGTERM, a lock on the run folder, where a resumed run writes.
 
 Kept apart from the loops (``legoh/train/``) so each rule is one small function a test can
 call, and the loops only ask it.
@@ -12,7 +12,7 @@ import os
 import shlex
 import signal
 import threading
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 
 try:
@@ -143,3 +143,22 @@ def run_lock(folder: Path) -> Iterator[Path]:
         finally:
             if fcntl is not None:
                 fcntl.flock(f, fcntl.LOCK_UN)
+
+
+def run_folder(mode: str, resume: str | None, hydra_dir: Path,
+               hydra_overrides: Sequence[str] = ()) -> Path:
+    """The folder a run writes to: Hydra's run folder, except that a resumed training run
+    continues in its checkpoint's own folder unless ``hydra.run.dir=`` was given.
+
+    A resume in a fresh folder split one run's history over two folders; in the old folder
+    through Hydra it overwrote the first run's ``.hydra/config.yaml``. Here the checkpoint's
+    folder gets the rest of the rows (cut back to the checkpoint first: ``ScalarCSV(until=)``)
+    and keeps its configs; Hydra's own folder keeps only this command's ``.hydra``.
+    """
+    explicit = any(o.split("=", 1)[0].lstrip("+~") == "hydra.run.dir" for o in hydra_overrides)
+    if mode != "train" or not resume or explicit:
+        return hydra_dir
+    folder = Path(resume).resolve().parent
+    print(f"[legoh] resuming in the checkpoint's run folder {folder} (this command's Hydra "
+          f"config: {hydra_dir}; hydra.run.dir=... writes elsewhere)")
+    return folder

@@ -102,3 +102,31 @@ def test_default_run_folders_do_not_collide() -> None:
         hydra_cfg = compose("config", return_hydra_config=True).hydra
     for node in (hydra_cfg.run, hydra_cfg.sweep):
         assert "%f" in str(node._get_node("dir")._value())
+
+
+def test_resume_continues_in_the_checkpoints_folder_and_keeps_its_config(tmp_path):
+    """``python run.py resume=<run>/oracle.pt`` writes into ``<run>``: its CSV continues,
+    its ``.hydra/config.yaml`` stays the first run's, the benchmark lands beside them.
+
+    Failed before with: the first folder's CSV stayed ['1']: the resumed run wrote into a
+    new outputs/<date>/<time>/, splitting its history over two folders."""
+    from legoh.train.oracle import train_oracle
+    from tests.conftest import compose_config
+
+    first = tmp_path / "first"
+    tiny = [o for o in TINY_RUN if not o.startswith("algo.total_frames")]
+    train_oracle(compose_config(*tiny, "algo.total_frames=32"), first)
+    (first / ".hydra").mkdir()
+    (first / ".hydra" / "config.yaml").write_text("# the first run's\n")
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    done = subprocess.run(
+        [sys.executable, str(ROOT / "run.py"), *tiny, "algo.total_frames=64",
+         f"resume={first / 'oracle.pt'}", "eval.robots=2", "eval.seconds=0.5", "eval.runs=1",
+         "eval.levels=[0]", "eval.variants=1"],
+        cwd=tmp_path, env=env, text=True, capture_output=True, timeout=600)
+    assert done.returncode == 0, done.stdout + done.stderr
+    with (first / "train.csv").open() as f:
+        assert [row["iteration"] for row in csv.DictReader(f)] == ["1", "2"]
+    assert (first / ".hydra" / "config.yaml").read_text() == "# the first run's\n"
+    assert (first / "benchmark.md").is_file()
+    assert load_checkpoint(first / "oracle.pt")["iteration"] == 2

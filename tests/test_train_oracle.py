@@ -1,5 +1,6 @@
 """Oracle stage: a tiny PPO run end to end, the loss on a fixed batch, resume, logs."""
 
+import shutil
 from pathlib import Path
 
 import pytest
@@ -46,6 +47,24 @@ def test_resume_continues_from_the_checkpoint(tmp_path: Path) -> None:
     assert [r.split(",")[0] for r in rows[1:]] == ["1", "2", "3"]  # appended, not restarted
     resumed = load_checkpoint(second.checkpoint)["models"]["actor"]
     assert any(not torch.equal(saved[k], resumed[k]) for k in saved)  # it trained on
+
+
+def test_resume_into_the_killed_runs_folder_keeps_one_history(tmp_path: Path, capsys) -> None:
+    """A run killed after iteration 4 whose last checkpoint is at 2: the resumed run's CSV
+    reads 1-4 once (rows past the checkpoint dropped, then logged again).
+
+    Failed before with: iterations [1, 2, 3, 4, 3, 4] (3-4 twice)."""
+    def keep_iteration_2(it, *_):
+        if it == 2:
+            shutil.copy(tmp_path / "oracle.pt", tmp_path / "at-2.pt")
+
+    train_oracle(compose_config(*TINY, "algo.total_frames=128"), tmp_path,
+                 on_iteration=keep_iteration_2)
+    cfg = compose_config(*TINY, "algo.total_frames=128", f"resume={tmp_path / 'at-2.pt'}")
+    run = train_oracle(cfg, tmp_path, resume=cfg.resume)
+    rows = run.csv.read_text().strip().splitlines()
+    assert [r.split(",")[0] for r in rows[1:]] == ["1", "2", "3", "4"]
+    assert "dropped iteration(s) 3-4" in capsys.readouterr().out
 
 
 def test_resume_past_the_budget_ends_at_once(tmp_path: Path, capsys) -> None:

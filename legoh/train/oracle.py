@@ -119,7 +119,7 @@ def _train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None,
     left = iterations_left(start, iterations, frames_per_batch, algo.total_frames, resume)
     collector = make_collector(cfg, functools.partial(make_env, cfg), actor, frames_per_batch,
                                left * frames_per_batch, env=env)
-    csv = ScalarCSV(out_dir / "train.csv", resume=bool(resume))
+    csv = ScalarCSV(out_dir / "train.csv", resume=bool(resume), until=start)
     mcap = McapLog(out_dir, stem="train")
     ckpt_path = out_dir / "oracle.pt"
     resolved = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)

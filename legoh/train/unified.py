@@ -318,7 +318,7 @@ def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None,
                                                       state_shapes=shapes),
                                student.policy, frames_per_batch,
                                left * frames_per_batch, env=env)
-    csv = ScalarCSV(out_dir / "train.csv", resume=bool(resume))
+    csv = ScalarCSV(out_dir / "train.csv", resume=bool(resume), until=start)
     mcap = McapLog(out_dir, stem="train")
     ckpt_path = out_dir / f"{algo.name}.pt"
     resolved = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
