@@ -1,5 +1,6 @@
 """Run bookkeeping shared by the training stages: the frame budget left to a resumed run,
-a clean stop on SIGINT / SIGTERM, a lock on the run folder, where a resumed run writes.
+a clean stop on SIGINT / SIGTERM, a lock on the run folder, where a resumed run writes,
+MuJoCo's log and a word when simulations diverge.
 
 Kept apart from the loops (``legoh/train/``) so each rule is one small function a test can
 call, and the loops only ask it.
@@ -12,6 +13,7 @@ import os
 import shlex
 import signal
 import threading
+import warnings
 from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 
@@ -162,3 +164,44 @@ def run_folder(mode: str, resume: str | None, hydra_dir: Path,
     print(f"[legoh] resuming in the checkpoint's run folder {folder} (this command's Hydra "
           f"config: {hydra_dir}; hydra.run.dir=... writes elsewhere)")
     return folder
+
+
+@contextlib.contextmanager
+def mujoco_log_in(folder: Path) -> Iterator[Path]:
+    """MuJoCo's ``MUJOCO_LOG.TXT`` (its "simulation is unstable" warnings) in ``folder``.
+
+    MuJoCo appends to that file in the current directory, which Hydra (``chdir=False``)
+    leaves at the launch folder: the messages of every run piled up there. MuJoCo 3.3+'s
+    ``MjLogConfig`` moves the file without a chdir; the previous setting comes back on exit.
+    The setting is per process: forked collector workers inherit it, spawned ones do not.
+    """
+    import mujoco
+
+    path = Path(folder) / "MUJOCO_LOG.TXT"
+    config = mujoco.MjLogConfig.get()
+    previous = config.logfile
+    config.logfile = str(path)
+    config.set()
+    try:
+        yield path
+    finally:
+        config.logfile = previous
+        config.set()
+
+
+_DIVERGENCE_WARNED: set[Path] = set()
+
+
+def warn_diverged(folder: Path, iteration: int, count: float) -> None:
+    """Say once per run folder (and process) that simulations diverged, what legoh did and
+    where to look: the count per iteration is logged, but a column goes unread."""
+    folder = Path(folder).resolve()
+    if not count > 0 or folder in _DIVERGENCE_WARNED:
+        return
+    _DIVERGENCE_WARNED.add(folder)
+    warnings.warn(
+        f"[legoh] {count:.0f} simulation(s) diverged in iteration {iteration} (|qvel| above "
+        f"env.divergence_qvel, or a state MuJoCo reset itself): each was reset and its "
+        f"episode truncated. Per iteration: the 'diverged' column of train.csv; MuJoCo's "
+        f"messages: {folder / 'MUJOCO_LOG.TXT'}. Many: try a smaller sim.dt, lower PD gains "
+        f"or a smaller action scale.", RuntimeWarning, stacklevel=2)

@@ -237,6 +237,26 @@ def test_diverged_env_is_reset_and_truncated(make: EnvFactory, bad_qvel: float,
     np.testing.assert_array_equal(env.steps, [7, 3, 7])
 
 
+def test_a_diverged_env_is_reset_once_and_flagged(make: EnvFactory, tmp_path,
+                                                 monkeypatch) -> None:
+    """torchrl's reset of the truncated env keeps the in-place reset: the ``next`` state the
+    batch records is the state the env goes on from; ``info/diverged`` marks the step.
+
+    Failed before with: AttributeError (no keys.DIVERGED); without the flag, env 1's root
+    base position moved from (4.81, 8.22) to (4.72, 7.77): a second spawn, drawn by torchrl's
+    reset after the in-place one."""
+    monkeypatch.chdir(tmp_path)  # MuJoCo writes its instability warning to MUJOCO_LOG.TXT
+    env = make(3)
+    td = env.reset()
+    td = zero_step(env, td)
+    env.sim.qvel[1] = 1e6
+    td, root = env.step_and_maybe_reset(td.set(keys.ACTION, torch.zeros(env.action_spec.shape)))
+    assert flags(td["next"], keys.DIVERGED) == [False, True, False]
+    assert flags(root, keys.DIVERGED) == [False, False, False]
+    torch.testing.assert_close(root[keys.BASE_POS], td["next", keys.BASE_POS])
+    assert env.diverged_count == 1
+
+
 # --------------------------------------------------------------------------- depth
 BOX_AHEAD = 1.2  # m from the spawn point to the box face, along the trail (+x)
 

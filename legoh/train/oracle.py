@@ -29,7 +29,7 @@ from legoh.modules.actor_critic import (
 from legoh.modules.encoders import make_adaptation_module
 from legoh.objectives.adaptation import adaptation_loss
 from legoh.objectives.ppo import make_ppo, ppo_update
-from legoh.runs import GracefulStop, iterations_left, run_lock
+from legoh.runs import GracefulStop, iterations_left, mujoco_log_in, run_lock, warn_diverged
 from legoh.train.collect import make_collector, policy_device, sync_weights
 
 
@@ -66,6 +66,7 @@ def batch_scalars(batch) -> dict[str, float]:
         "level_mean": float(nxt[keys.LEVEL].float().mean()),
         "reached_frac": float(nxt[keys.REACHED].float().sum() / max(done.sum().item(), 1.0)),
         "fell_frac": float(nxt[keys.FELL].float().sum() / max(done.sum().item(), 1.0)),
+        "diverged": float(nxt[keys.DIVERGED].sum()),  # envs reset for a diverged simulation
         "progress": float(nxt[keys.PROGRESS].float().mean()),
     }
     for name, value in nxt[keys.REWARD_TERMS].items():
@@ -86,7 +87,8 @@ def train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None = None,
     """
     from legoh.eval.benchmark import torch_threads
 
-    with run_lock(out_dir), torch_threads(cfg.algo.torch_threads), GracefulStop() as stop:
+    with (run_lock(out_dir), mujoco_log_in(out_dir), torch_threads(cfg.algo.torch_threads),
+          GracefulStop() as stop):
         return _train_oracle(cfg, out_dir, resume, on_iteration, stop, resume_hint)
 
 
@@ -191,6 +193,7 @@ def record_iteration(it: int, iterations: int, stats: dict, batch, algo, csv: Sc
     at the last one."""
     csv.write(it, stats)
     mcap.log_scalars(it, stats)
+    warn_diverged(csv.path.parent, it, stats.get("diverged", 0.0))
     if it % algo.trajectory_every == 0 or it == iterations:
         log_trajectory(mcap, it, batch, dt)
     if it % algo.checkpoint_every == 0 or it == iterations:

@@ -35,7 +35,13 @@ from legoh.modules.actor_critic import LOC
 from legoh.modules.students import Student, StudentDims, make_student, unroll
 from legoh.objectives.distill import distillation_loss
 from legoh.objectives.ppo import make_ppo, ppo_update
-from legoh.runs import GracefulStop, iterations_left, resume_command, run_lock
+from legoh.runs import (
+    GracefulStop,
+    iterations_left,
+    mujoco_log_in,
+    resume_command,
+    run_lock,
+)
 from legoh.train.oracle import (
     batch_scalars,
     build_oracle,
@@ -270,7 +276,8 @@ def train_student(cfg: DictConfig, out_dir: Path, resume: str | None = None) -> 
     """Train ``cfg.algo.student`` for ``cfg.algo.total_frames`` env steps."""
     from legoh.eval.benchmark import torch_threads
 
-    with run_lock(out_dir), torch_threads(cfg.algo.torch_threads), GracefulStop() as stop:
+    with (run_lock(out_dir), mujoco_log_in(out_dir), torch_threads(cfg.algo.torch_threads),
+          GracefulStop() as stop):
         return _train_student(cfg, out_dir, resume, stop)
 
 
