@@ -30,7 +30,12 @@ from legoh.modules.encoders import make_adaptation_module
 from legoh.objectives.adaptation import adaptation_loss
 from legoh.objectives.ppo import make_ppo, ppo_update
 from legoh.runs import GracefulStop, iterations_left, mujoco_log_in, run_lock, warn_diverged
-from legoh.train.collect import make_collector, policy_device, sync_weights
+from legoh.train.collect import (
+    make_collector,
+    mirror_curriculum,
+    policy_device,
+    sync_weights,
+)
 
 
 @dataclass
@@ -148,6 +153,7 @@ def _train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None,
         adapt_optim.step()
         stats["loss_adaptation"] = float(adapt.detach())
         sync_weights(collector)  # the workers act with the updated actor from the next batch
+        mirror_curriculum(collector, env, batch)  # workers' levels -> checkpoint
         stats.update(batch_scalars(batch))
         now = time.perf_counter()
         stats["frames_per_s"] = frames_per_batch / (now - tick)

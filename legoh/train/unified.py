@@ -283,7 +283,12 @@ def train_student(cfg: DictConfig, out_dir: Path, resume: str | None = None) -> 
 
 def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None,
                    stop: GracefulStop) -> StudentRun:
-    from legoh.train.collect import make_collector, policy_device, sync_weights
+    from legoh.train.collect import (
+    make_collector,
+    mirror_curriculum,
+    policy_device,
+    sync_weights,
+)
 
     algo = cfg.algo
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -359,6 +364,7 @@ def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None,
         stats.update(distill(student, batch, cfg, distill_optim, prior_loss, gen))
         clock["distill"] = time.perf_counter()
         sync_weights(collector)  # the workers act with the updated student from the next batch
+        mirror_curriculum(collector, env, batch)  # workers' levels -> checkpoint
         stats.update(batch_scalars(batch))
         marks = [tick, *clock.values()]
         stats.update({f"time/{k}": t1 - t0 for k, t0, t1 in zip(clock, marks[:-1], marks[1:],
