@@ -202,7 +202,7 @@ def check_values(path: Path, payload: Any, where: str = "") -> None:
                                       f"({int((~finite).sum())} of {payload.numel()})")
             peak = float(payload.abs().max())
             if peak > ABSURD:
-                raise CheckpointError(f"{path}: tensor {where} holds |value| {peak:.3g}, above "
+                raise CheckpointError(f"{path}: tensor {where} holds magnitude {peak:.3g}, above "
                                       f"{ABSURD:.0e}: damaged or from a diverged run")
     elif isinstance(payload, Mapping):
         for key, value in payload.items():
