@@ -7,12 +7,16 @@ from omegaconf import DictConfig, OmegaConf
 
 
 def run(cfg: DictConfig) -> None:
-    """Run ``cfg.mode`` in the Hydra run's output folder."""
+    """Run ``cfg.mode`` in the Hydra run's output folder (a resumed training run: in its
+    checkpoint's folder, :func:`legoh.runs.run_folder`)."""
     from legoh.config import Mode, validate
+    from legoh.runs import run_folder
 
     validate(cfg)
-    out_dir = Path(HydraConfig.get().runtime.output_dir)
+    hydra = HydraConfig.get()
     mode = Mode(cfg.mode)
+    out_dir = run_folder(mode.value, cfg.resume, Path(hydra.runtime.output_dir),
+                         hydra.overrides.hydra)
     if mode == Mode.stand:
         from legoh import stand
 

@@ -14,6 +14,11 @@ moved over the target with ``os.replace`` (atomic on POSIX and Windows), so a cr
 either the old checkpoint or the new one, never a partial file. Loads use
 ``torch.load(weights_only=True)``: only tensors and plain containers are unpickled (the
 numpy RNG state is stored as a tensor for that reason).
+
+Integrity: ``torch.load`` does not check the CRC32 its zip container stores per entry, so
+bytes damaged on disk or in a copy would load as wild weights (a 5e34 reaching Adam). A load
+first checks every entry's CRC (:func:`verify_zip`), then refuses any floating tensor that
+is non-finite or larger than :data:`ABSURD` in magnitude, naming the file and the tensor.
 """
 
 from __future__ import annotations
@@ -21,6 +26,7 @@ from __future__ import annotations
 import os
 import random
 import tempfile
+import zipfile
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -30,6 +36,10 @@ import torch
 
 FORMAT_VERSION = 1
 REQUIRED = ("format", "models", "iteration", "robot", "layout")
+# |value| above which a stored float is damage, not training: weights and Adam moments of a
+# run with gradient clipping stay many orders below, while random bytes read as float32
+# mostly land far above (up to 3e38) or are caught by the CRC anyway.
+ABSURD = 1e10
 
 
 class CheckpointError(RuntimeError):
@@ -130,12 +140,14 @@ def load_checkpoint(path: str | Path, expect_robot: str | None = None,
 
     Raises:
         FileNotFoundError: no file at ``path``.
-        CheckpointError: unreadable (corrupt, truncated, not a legoh checkpoint), or made
-            for another robot or observation layout; the message names both sides.
+        CheckpointError: unreadable (corrupt, truncated, not a legoh checkpoint), damaged
+            (a zip entry fails its CRC; a tensor is non-finite or absurd: the message names
+            it), or made for another robot or observation layout (the message names both).
     """
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"no checkpoint at {path}")
+    verify_zip(path)
     try:
         payload = torch.load(path, map_location=map_location, weights_only=True)
     except Exception as err:
@@ -143,6 +155,7 @@ def load_checkpoint(path: str | Path, expect_robot: str | None = None,
                               f"{type(err).__name__}: {err}") from err
     if not isinstance(payload, dict) or any(k not in payload for k in REQUIRED):
         raise CheckpointError(f"{path} is not a legoh checkpoint (expected keys {REQUIRED})")
+    check_values(path, payload)
     if payload["format"] != FORMAT_VERSION:
         raise CheckpointError(f"{path} has format {payload['format']}, this code reads "
                               f"{FORMAT_VERSION}")
@@ -157,3 +170,43 @@ def load_checkpoint(path: str | Path, expect_robot: str | None = None,
                 f"{path} has observation layout {have}, but this run has {want} "
                 f"(differing keys: {diff})")
     return payload
+
+
+def verify_zip(path: Path) -> None:
+    """Refuse a checkpoint whose zip container is unreadable or has an entry failing its CRC.
+
+    Raises ``CheckpointError`` naming the file and the damaged entry (``<archive>/data/N`` is
+    a tensor storage, ``data.pkl`` the structure).
+    """
+    try:
+        with zipfile.ZipFile(path) as archive:
+            bad = archive.testzip()
+    except (zipfile.BadZipFile, OSError, EOFError) as err:
+        raise CheckpointError(f"{path} is not a readable checkpoint (corrupt or truncated?): "
+                              f"{type(err).__name__}: {err}") from err
+    if bad is not None:
+        raise CheckpointError(f"{path} is damaged: zip entry {bad!r} fails its CRC check "
+                              f"(the file changed after it was written; use an older copy)")
+
+
+def check_values(path: Path, payload: Any, where: str = "") -> None:
+    """Refuse non-finite or absurd (> :data:`ABSURD`) floating tensors, naming the first.
+
+    ``where`` is the dotted location inside the payload, e.g. ``models/actor/0.weight``.
+    """
+    if isinstance(payload, torch.Tensor):
+        if payload.is_floating_point() and payload.numel():
+            finite = torch.isfinite(payload)
+            if not bool(finite.all()):
+                raise CheckpointError(f"{path}: tensor {where} holds non-finite values "
+                                      f"({int((~finite).sum())} of {payload.numel()})")
+            peak = float(payload.abs().max())
+            if peak > ABSURD:
+                raise CheckpointError(f"{path}: tensor {where} holds magnitude {peak:.3g}, above "
+                                      f"{ABSURD:.0e}: damaged or from a diverged run")
+    elif isinstance(payload, Mapping):
+        for key, value in payload.items():
+            check_values(path, value, f"{where}/{key}".lstrip("/"))
+    elif isinstance(payload, list | tuple):
+        for i, value in enumerate(payload):
+            check_values(path, value, f"{where}/{i}".lstrip("/"))

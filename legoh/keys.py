@@ -40,6 +40,7 @@ DONE, TERMINATED, TRUNCATED = "done", "terminated", "truncated"
 INFO = "info"
 REACHED = ("info", "reached")  # bool: within the goal radius of the terminus
 FELL = ("info", "fell")  # bool: the pose check failed
+DIVERGED = ("info", "diverged")  # bool: the simulation diverged this step (env reset in place)
 WAYPOINT = ("info", "waypoint")  # int: index of the current expert waypoint
 PROGRESS = ("info", "progress")  # float: fraction of the trail's length covered, [0, 1]
 EDGE_CONTACTS = ("info", "edge_contacts")  # int: feet in contact on a terrain edge

@@ -12,7 +12,9 @@ scalar names, sorted). A later row with a **new** name is refused with a ``Value
 naming it (a column that appears halfway would leave a ragged, misleading file: log every
 scalar from the first iteration, with NaN if it has no value yet); a missing name is
 written as an empty cell. ``resume=True`` appends to an existing file under its header;
-``resume=False`` refuses to overwrite one.
+``resume=False`` refuses to overwrite one, naming the command that continues that run;
+``until=N`` (a resumed run: its checkpoint's iteration) first drops rows after N, so the
+file reads as one history.
 
 MCAP (:class:`McapLog`): JSON messages with JSON-schema schemas on two channels,
 ``scalars`` (one message per iteration) and ``trajectory`` (one message per step of a
@@ -52,14 +54,20 @@ class ScalarCSV:
     Args:
         path: the CSV file. resume: append to an existing file (its header is kept);
             when False an existing file is an error.
+        until: with ``resume``, first drop the rows after this iteration: those a killed
+            run logged past its last checkpoint, which the resumed run logs again.
     """
 
-    def __init__(self, path: str | Path, resume: bool = False) -> None:
+    def __init__(self, path: str | Path, resume: bool = False, until: int | None = None
+                 ) -> None:
         self.path = Path(path)
         self.columns: list[str] | None = None
         if self.path.exists() and self.path.stat().st_size > 0:
             if not resume:
-                raise FileExistsError(f"{self.path} exists; pass resume=True to append to it")
+                raise FileExistsError(f"{self.path} exists: another run wrote into this "
+                                      f"folder. {_continue_hint(self.path.parent)}")
+            if until is not None:
+                cut_rows_after(self.path, until)
             with self.path.open(newline="", encoding="utf-8") as f:
                 self.columns = next(csv.reader(f))
         self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -89,6 +97,31 @@ class ScalarCSV:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def cut_rows_after(path: Path, iteration: int) -> None:
+    """Rewrite a scalar CSV without its rows after ``iteration`` (atomically; untouched when
+    there are none), saying which were dropped."""
+    with path.open(newline="", encoding="utf-8") as f:
+        header, *rows = list(csv.reader(f))
+    keep = [r for r in rows if r and int(r[0]) <= iteration]
+    if len(keep) == len(rows):
+        return
+    tmp = path.with_name(f".{path.name}.tmp")
+    with tmp.open("w", newline="", encoding="utf-8") as f:
+        csv.writer(f).writerows([header, *keep])
+    tmp.replace(path)
+    dropped = [r[0] for r in rows if r and int(r[0]) > iteration]
+    print(f"[legoh] {path}: dropped iteration(s) {dropped[0]}-{dropped[-1]} logged after the "
+          f"checkpoint (iteration {iteration}); the resumed run logs them again")
+
+
+def _continue_hint(folder: Path) -> str:
+    """The command that continues the run in ``folder`` (its checkpoint named when there is
+    one), or how to start a fresh run elsewhere."""
+    ckpt = next(iter(sorted(folder.glob("*.pt"))), folder / "<checkpoint>.pt")
+    return (f"Continue it with `python run.py <its overrides> resume={ckpt}`, or start a "
+            f"new run in another folder (hydra.run.dir=...)")
 
 
 SCALARS_SCHEMA = {

@@ -7,14 +7,19 @@ the robot builds and stands under its own PD, and the depth camera sees the grou
 from __future__ import annotations
 
 import os
-from pathlib import Path
+import sys
 
-import mujoco
-import numpy as np
-from omegaconf import DictConfig, OmegaConf
+if sys.platform.startswith("linux"):  # headless; must precede mujoco's first import
+    os.environ.setdefault("MUJOCO_GL", "egl")
 
-from legoh.config import RobotConfig, SimConfig
-from legoh.envs.robots import (
+from pathlib import Path  # noqa: E402
+
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
+from omegaconf import DictConfig, OmegaConf  # noqa: E402
+
+from legoh.config import RobotConfig, SimConfig  # noqa: E402
+from legoh.envs.robots import (  # noqa: E402
     CAMERA_NAME,
     RobotInfo,
     add_flat_ground,
@@ -23,7 +28,7 @@ from legoh.envs.robots import (
     set_options,
     standing_base_height,
 )
-from legoh.envs.sensors import DepthRaycaster
+from legoh.envs.sensors import DepthRaycaster  # noqa: E402
 
 
 def build_standing_scene(robot_cfg: RobotConfig, sim: SimConfig, render: bool = False
@@ -54,7 +59,6 @@ def hold_default_pose(model: mujoco.MjModel, data: mujoco.MjData, seconds: float
 def render_picture(model: mujoco.MjModel, data: mujoco.MjData, info: RobotInfo,
                    robot_cfg: RobotConfig, path: Path) -> Path:
     """A PNG: the robot seen from the side-front, beside its egocentric depth image."""
-    os.environ.setdefault("MUJOCO_GL", "egl")
     import matplotlib
 
     matplotlib.use("Agg")

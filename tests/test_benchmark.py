@@ -56,6 +56,17 @@ def test_run_config_seeds_runs_and_checks_levels() -> None:
         run_config(compose_config(*TINY, "eval.levels=[0,1]"), 0)
 
 
+def test_the_runs_seed_rules_the_evaluation_unless_eval_seed_is_set() -> None:
+    """``seed=987654`` seeds the evaluation's terrain and env; ``eval.seed`` still wins.
+
+    Failed before with: run 0 seeded 0 for seed=987654 (eval.seed's default 0 ruled)."""
+    assert run_config(compose_config(*TINY, "seed=987654"), 0).seed == 987654
+    from legoh.eval.benchmark import eval_seed
+
+    assert eval_seed(compose_config(*TINY, "seed=987654")) == (987654, "seed")
+    assert eval_seed(compose_config(*TINY, "seed=987654", "eval.seed=3")) == (3, "eval.seed")
+
+
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory: pytest.TempPathFactory) -> tuple:
     cfg = compose_config(*TINY)

@@ -104,3 +104,33 @@ def test_missing_and_corrupt_files(tmp_path):
 def test_incomplete_payload_refused(tmp_path):
     with pytest.raises(ValueError, match="lacks"):
         save_checkpoint(tmp_path / "c.pt", {"models": {}})
+
+
+def test_damaged_bytes_are_refused(tmp_path):
+    """100 random bytes in the middle of a checkpoint: refused, naming the damaged entry.
+
+    Failed before with: DID NOT RAISE (torch.load skips the zip CRCs; values up to 1e36
+    loaded into the model)."""
+    torch.manual_seed(0)
+    big = nn.Linear(200, 100)
+    save_checkpoint(tmp_path / "c.pt", payload(models={"actor": big}, optimizers=None))
+    data = bytearray((tmp_path / "c.pt").read_bytes())
+    mid = len(data) // 2
+    data[mid:mid + 100] = np.random.default_rng(0).bytes(100)
+    (tmp_path / "c.pt").write_bytes(bytes(data))
+    with pytest.raises(CheckpointError, match=r"c\.pt is damaged: zip entry '.*data/\d+' fails"):
+        load_checkpoint(tmp_path / "c.pt")
+
+
+@pytest.mark.parametrize("bad", [float("nan"), 5e34])
+def test_non_finite_or_absurd_tensors_are_refused(tmp_path, bad):
+    """A checkpoint holding NaN or 5e34 (a diverged run, damage behind a valid CRC) is refused,
+    naming the file and the tensor.
+
+    Failed before with: DID NOT RAISE (the values reached the model and Adam)."""
+    model = nn.Linear(4, 2)
+    with torch.no_grad():
+        model.weight[0, 1] = bad
+    save_checkpoint(tmp_path / "c.pt", payload(models={"actor": model}, optimizers=None))
+    with pytest.raises(CheckpointError, match=r"c\.pt: tensor models/actor/weight holds"):
+        load_checkpoint(tmp_path / "c.pt")

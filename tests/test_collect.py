@@ -111,3 +111,27 @@ def test_ray_config_composes() -> None:
     assert cfg.collector.init.address == "auto" and cfg.collector.cpus_per_worker == 4
     assert cfg.collector.policy_device == "cpu"  # workers may have no GPU
     assert compose_config().collector.name == "sync"
+
+
+def test_worker_curriculum_reaches_the_checkpoint_and_comes_back_on_resume(
+        tmp_path: Path) -> None:
+    """With 2 worker processes the checkpoint keeps the workers' curriculum (levels, step
+    counter), and a resumed run's workers start from it.
+
+    Failed before with: assert 0 == 8 (the checkpoint held the learner's unstepped env's
+    step counter); resumed workers also built fresh envs, at level 0 instead of 2."""
+    from legoh.checkpoint import load_checkpoint, save_checkpoint
+
+    tiny = [o for o in TINY if not o.startswith("trail.levels")]
+    workers = ("collector.workers=2", "trail.levels=3")
+    run = train_oracle(compose_config(*tiny, *workers, "algo.total_frames=32"), tmp_path)
+    state = load_checkpoint(run.checkpoint)
+    assert state["curriculum"]["global_steps"] == STEPS
+    state["curriculum"]["level"] = [2] * NUM_ENVS
+    save_checkpoint(run.checkpoint, state)
+    cfg = compose_config(*tiny, *workers, "algo.total_frames=64", f"resume={run.checkpoint}")
+    second = train_oracle(cfg, tmp_path, resume=cfg.resume)
+    last = second.csv.read_text().strip().splitlines()
+    header, row = last[0].split(","), last[-1].split(",")
+    assert float(row[header.index("level_mean")]) == 2.0
+    assert load_checkpoint(second.checkpoint)["curriculum"]["global_steps"] == 2 * STEPS

@@ -107,3 +107,37 @@ def test_mistyped_key_in_a_yaml_file_fails(tmp_path: Path) -> None:
         with pytest.raises(ConfigCompositionException) as err:
             compose("config")
     assert "Key 'action_scael' not in 'RobotConfig'" in message(err)
+
+
+@pytest.mark.parametrize(("override", "shown"), [
+    ("env.episode_length_s=-1", "env.episode_length_s=-1.0 is out of range: "
+                                "env.episode_length_s must be 0 < x"),
+    ("algo.num_envs=0", "algo.num_envs=0 is out of range: algo.num_envs must be 1 <= x"),
+    ("env.depth.width=-5", "env.depth.width=-5 is out of range: env.depth.width must be 1 <= x"),
+    ("algo.gamma=1.5", "algo.gamma must be 0 <= x <= 1"),
+    ("env.command.speed=[1.0,0.2]", "env.command.speed=[1.0, 0.2] is out of range: "
+                                    "env.command.speed must be [low, high] with low <= high"),
+    ("env.curriculum.down=0.9", "env.curriculum.down=0.9 must not exceed env.curriculum.up"),
+])
+def test_values_out_of_range_are_named(override: str, shown: str) -> None:
+    """validate() names the key, the value and the range of a number out of range.
+
+    Failed before with: DID NOT RAISE (the schemas checked types only)."""
+    with pytest.raises(ValueError, match="") as err:
+        validate(compose_config(override))
+    assert shown in str(err.value)
+
+
+def test_every_numeric_setting_has_a_range() -> None:
+    """Each numeric key of every option of every group matches a row of the range table, and
+    every shipped option passes it (a new setting needs a row; a default must be valid)."""
+    from legoh.config.ranges import numeric_leaves, rule_for
+
+    overrides = [f"{g}={o}" for g in ("robot", "trail", "algo", "eval", "collector")
+                 for o in group_options(g)]
+    for override in overrides:
+        cfg = compose_config(override)
+        validate(cfg)
+        plain = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
+        unmatched = [k for k, _ in numeric_leaves(plain) if rule_for(k) is None]
+        assert not unmatched, f"{override}: no range for {unmatched}"

@@ -237,6 +237,26 @@ def test_diverged_env_is_reset_and_truncated(make: EnvFactory, bad_qvel: float,
     np.testing.assert_array_equal(env.steps, [7, 3, 7])
 
 
+def test_a_diverged_env_is_reset_once_and_flagged(make: EnvFactory, tmp_path,
+                                                 monkeypatch) -> None:
+    """torchrl's reset of the truncated env keeps the in-place reset: the ``next`` state the
+    batch records is the state the env goes on from; ``info/diverged`` marks the step.
+
+    Failed before with: AttributeError (no keys.DIVERGED); without the flag, env 1's root
+    base position moved from (4.81, 8.22) to (4.72, 7.77): a second spawn, drawn by torchrl's
+    reset after the in-place one."""
+    monkeypatch.chdir(tmp_path)  # MuJoCo writes its instability warning to MUJOCO_LOG.TXT
+    env = make(3)
+    td = env.reset()
+    td = zero_step(env, td)
+    env.sim.qvel[1] = 1e6
+    td, root = env.step_and_maybe_reset(td.set(keys.ACTION, torch.zeros(env.action_spec.shape)))
+    assert flags(td["next"], keys.DIVERGED) == [False, True, False]
+    assert flags(root, keys.DIVERGED) == [False, False, False]
+    torch.testing.assert_close(root[keys.BASE_POS], td["next", keys.BASE_POS])
+    assert env.diverged_count == 1
+
+
 # --------------------------------------------------------------------------- depth
 BOX_AHEAD = 1.2  # m from the spawn point to the box face, along the trail (+x)
 
@@ -322,3 +342,13 @@ def test_depth_frames_are_reproducible() -> None:
         finally:
             env.close()
     assert torch.equal(frames[0], frames[1])
+
+
+def test_make_env_refuses_unknown_settings() -> None:
+    """A misspelled override to make_env is refused, naming it.
+
+    Failed before with: DID NOT RAISE (setattr made a dead attribute; the env ran with 20 s)."""
+    from legoh.envs.hiking_env import make_env
+
+    with pytest.raises(TypeError, match=r"unknown env setting\(s\) \['epsiode_length_s'\]"):
+        make_env(compose_config("trail=flat"), num_envs=1, epsiode_length_s=5.0)

@@ -33,8 +33,12 @@ class TestScalarCSV:
     def test_resume_appends_and_fresh_refuses(self, tmp_path):
         with ScalarCSV(tmp_path / "s.csv") as log:
             log.write(0, {"loss": 1.0})
-        with pytest.raises(FileExistsError, match="resume=True"):
+        (tmp_path / "oracle.pt").touch()
+        with pytest.raises(FileExistsError) as err:
             ScalarCSV(tmp_path / "s.csv")
+        # the hint names the real command (it said "pass resume=True", a Python argument)
+        assert "resume=True" not in str(err.value)
+        assert f"python run.py <its overrides> resume={tmp_path / 'oracle.pt'}" in str(err.value)
         with ScalarCSV(tmp_path / "s.csv", resume=True) as log:
             log.write(1, {"loss": 2.0})
         assert rows(tmp_path / "s.csv") == [["iteration", "loss"], ["0", "1.0"], ["1", "2.0"]]

@@ -1,5 +1,7 @@
 """Oracle stage: a tiny PPO run end to end, the loss on a fixed batch, resume, logs."""
 
+import csv
+import shutil
 from pathlib import Path
 
 import pytest
@@ -46,6 +48,69 @@ def test_resume_continues_from_the_checkpoint(tmp_path: Path) -> None:
     assert [r.split(",")[0] for r in rows[1:]] == ["1", "2", "3"]  # appended, not restarted
     resumed = load_checkpoint(second.checkpoint)["models"]["actor"]
     assert any(not torch.equal(saved[k], resumed[k]) for k in saved)  # it trained on
+
+
+def test_resume_into_the_killed_runs_folder_keeps_one_history(tmp_path: Path, capsys) -> None:
+    """A run killed after iteration 4 whose last checkpoint is at 2: the resumed run's CSV
+    reads 1-4 once (rows past the checkpoint dropped, then logged again).
+
+    Failed before with: iterations [1, 2, 3, 4, 3, 4] (3-4 twice)."""
+    def keep_iteration_2(it, *_):
+        if it == 2:
+            shutil.copy(tmp_path / "oracle.pt", tmp_path / "at-2.pt")
+
+    train_oracle(compose_config(*TINY, "algo.total_frames=128"), tmp_path,
+                 on_iteration=keep_iteration_2)
+    cfg = compose_config(*TINY, "algo.total_frames=128", f"resume={tmp_path / 'at-2.pt'}")
+    run = train_oracle(cfg, tmp_path, resume=cfg.resume)
+    rows = run.csv.read_text().strip().splitlines()
+    assert [r.split(",")[0] for r in rows[1:]] == ["1", "2", "3", "4"]
+    assert "dropped iteration(s) 3-4" in capsys.readouterr().out
+
+
+def test_divergence_is_counted_warned_once_and_logged_in_the_run_folder(
+        tmp_path: Path, monkeypatch) -> None:
+    """A threshold every moving robot crosses: each iteration logs its count of diverged
+    resets, one warning says so, and MuJoCo's own log goes to the run folder, not the cwd.
+
+    Failed before with: KeyError 'diverged' (no such column); MUJOCO_LOG.TXT in the cwd."""
+    import mujoco
+
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "run"
+
+    def mujoco_warns(it, *_):  # a real MuJoCo instability warning, mid-run
+        model = mujoco.MjModel.from_xml_string(
+            "<mujoco><worldbody><body><freejoint/><geom size='.1'/></body></worldbody></mujoco>")
+        data = mujoco.MjData(model)
+        data.qvel[:] = float("nan")
+        mujoco.mj_step(model, data)
+
+    cfg = compose_config(*TINY, "algo.total_frames=64", "env.divergence_qvel=1e-6")
+    with pytest.warns(RuntimeWarning, match="simulation.s. diverged in iteration 1") as seen:
+        run = train_oracle(cfg, out, on_iteration=mujoco_warns)
+    assert sum("diverged" in str(w.message) for w in seen) == 1
+    with run.csv.open() as f:
+        counts = [float(row["diverged"]) for row in csv.DictReader(f)]
+    assert len(counts) == 2 and all(c > 0 for c in counts)
+    assert "unstable" in (out / "MUJOCO_LOG.TXT").read_text()
+    assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
+
+
+def test_resume_past_the_budget_ends_at_once(tmp_path: Path, capsys) -> None:
+    """A budget below the checkpoint's progress means no more frames, said in a message.
+
+    Failed before with: the collector got a negative frame budget (torchrl: endless) and
+    collected on; the guard below caught iteration 3 of a 1-iteration budget."""
+    first = train_oracle(compose_config(*TINY, "algo.total_frames=64"), tmp_path)
+    assert first.iterations == 2
+    cfg = compose_config(*TINY, "algo.total_frames=32", f"resume={first.checkpoint}")
+    calls = []
+    run = train_oracle(cfg, tmp_path, resume=cfg.resume,
+                       on_iteration=lambda it, *_: calls.append(it) or True)
+    assert calls == [] and run.iterations == 2
+    assert "no more frames to collect" in capsys.readouterr().out
+    assert load_checkpoint(run.checkpoint)["iteration"] == 2
 
 
 def test_resume_into_another_robot_is_refused(tmp_path: Path) -> None:

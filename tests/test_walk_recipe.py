@@ -96,6 +96,7 @@ def _batch(done: torch.Tensor, steps: torch.Tensor) -> TensorDict:
         "done": done[..., None], "reward": torch.zeros(n, t, 1),
         keys.EPISODE_STEPS: steps, keys.LEVEL: torch.zeros(n, t, dtype=torch.int64),
         keys.REACHED: torch.zeros(n, t, dtype=torch.bool), keys.FELL: done.clone(),
+        keys.DIVERGED: torch.zeros(n, t, dtype=torch.bool),
         keys.PROGRESS: torch.zeros(n, t), keys.REWARD_TERMS: TensorDict({}, [n, t]),
     }, [n, t])
     return TensorDict({"next": nxt}, [n, t])

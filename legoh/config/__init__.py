@@ -17,6 +17,7 @@ from legoh.config.algo import LossWeights, OracleConfig, UnifiedConfig
 from legoh.config.collector import CollectorConfig, RayCollectorConfig
 from legoh.config.env import EnvConfig
 from legoh.config.eval import EvalConfig
+from legoh.config.ranges import check_ranges
 from legoh.config.robot import CameraConfig, RobotConfig
 from legoh.config.trail import TrailConfig
 
@@ -82,7 +83,8 @@ def register_configs() -> None:
 
 
 def validate(cfg: DictConfig, path: str = "") -> None:
-    """Refuse keys a schema does not declare, wherever they came from.
+    """Refuse keys a schema does not declare, wherever they came from, and (on the whole
+    config) numbers outside their valid range (:mod:`legoh.config.ranges`).
 
     Composition already rejects mistyped keys in files and plain overrides; this also catches
     Hydra's append syntax (``+robot.kpp=3``), which bypasses the schema.
@@ -99,3 +101,5 @@ def validate(cfg: DictConfig, path: str = "") -> None:
         child = cfg._get_node(key)
         if isinstance(child, DictConfig) and not child._is_none():
             validate(child, f"{path}.{key}".lstrip("."))
+    if not path:
+        check_ranges(cfg)

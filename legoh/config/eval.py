@@ -14,4 +14,6 @@ class EvalConfig:
     levels: list[int] = field(default_factory=lambda: [0, 1, 2, 3, 4])  # levels evaluated
     variants: int = 5  # random variants per (category, level) in the evaluation map
     runs: int = 5  # repetitions, each with its own seed; tables give mean ± std over runs
-    seed: int = 0  # run r uses seed + r for the terrain and the env
+    # run r uses seed + r for the terrain and the env; None follows the run's top-level
+    # ``seed`` (one seed rules unless this is set)
+    seed: int | None = None

@@ -142,6 +142,9 @@ class HikingEnv(EnvBase):
         self.global_steps = 0
         self.frame_clock = 0
         self.diverged_count = 0
+        # envs reset in place by this step's divergence check: torchrl's reset of the
+        # truncated envs skips them (one reset per diverged episode, not two)
+        self._diverged = np.zeros(self.num_envs, dtype=bool)
 
     # ----------------------------------------------------------------- set-up
     def _alloc_buffers(self) -> None:
@@ -194,6 +197,7 @@ class HikingEnv(EnvBase):
             obs["depth_fresh"] = Categorical(2, shape=(n, 1), dtype=torch.bool)
         info = {
             "reached": flag(), "fell": flag(),
+            "diverged": flag(),  # keys.DIVERGED, set by _step and _reset
             "waypoint": Unbounded(shape=(n,), dtype=torch.int64),
             "episode_steps": Unbounded(shape=(n,), dtype=torch.int64),
             "progress": Unbounded(shape=(n,), dtype=f32),
@@ -233,6 +237,9 @@ class HikingEnv(EnvBase):
         mask = None if tensordict is None else tensordict.get("_reset", None)
         ids = (np.arange(self.num_envs) if mask is None
                else np.flatnonzero(mask.reshape(self.num_envs).numpy()))
+        if mask is not None:
+            ids = ids[~self._diverged[ids]]  # already reset in place by their step
+        self._diverged = np.zeros(self.num_envs, dtype=bool)
         if len(ids):
             self._reset_envs(ids)
         none = np.zeros(self.num_envs, dtype=bool)
@@ -240,7 +247,9 @@ class HikingEnv(EnvBase):
         fresh[ids] = True  # only reset envs get a new history entry; the others keep theirs
         self._update_base()
         self._update_command()
-        return self._observe(none, none, fresh)
+        out = self._observe(none, none, fresh)
+        out.set(keys.DIVERGED, torch.as_tensor(none))
+        return out
 
     def _reset_envs(self, ids: np.ndarray) -> None:
         """Curriculum update for finished episodes, then a new tile, pose and model."""
@@ -375,6 +384,7 @@ class HikingEnv(EnvBase):
             self.depth = np.concatenate([self.depth[:, 1:], frame[:, None]], axis=1)
             self.depth_fresh[:] = True
         out = self._observe(reached, fell)
+        out.set(keys.DIVERGED, torch.as_tensor(diverged))
         out.set(keys.EPISODE_STEPS, torch.as_tensor(self.steps.copy()))
         out.set(keys.REWARD, torch.as_tensor(reward, dtype=torch.float32).unsqueeze(-1))
         out.set(keys.TERMINATED, torch.as_tensor(terminated).unsqueeze(-1))
@@ -404,6 +414,7 @@ class HikingEnv(EnvBase):
             self.diverged_count += len(ids)
             self.steps[ids] = 0  # no curriculum credit for a diverged episode
             self._reset_envs(ids)
+        self._diverged = bad
         return bad
 
     # ----------------------------------------------------------------- state
@@ -619,6 +630,10 @@ def make_env(cfg, num_envs: int | None = None, evaluation: bool = False, **overr
     env_cfg: EnvConfig = OmegaConf.to_object(cfg.env)
     if num_envs is not None:
         env_cfg.num_envs = num_envs
+    known = set(env_cfg.__dataclass_fields__)  # a typo would otherwise set a dead attribute
+    if unknown := sorted(set(overrides) - known):
+        raise TypeError(f"make_env: unknown env setting(s) {unknown}; EnvConfig has "
+                        f"{sorted(known)}")
     for key, value in overrides.items():
         setattr(env_cfg, key, value)
     return HikingEnv(OmegaConf.to_object(cfg.robot), OmegaConf.to_object(cfg.trail), env_cfg,

@@ -1,6 +1,7 @@
 """The benchmark protocol (``conf/eval``): robots on fixed levels, the paper's tables.
 
-For each run r (terrain and env seeded with ``eval.seed + r``) an evaluation env is built
+For each run r (terrain and env seeded with ``s + r``, ``s`` = ``eval.seed`` when set, else
+the run's ``seed``: :func:`eval_seed`) an evaluation env is built
 once: ``eval.robots`` robots spread round-robin over the trail's categories, the terminus
 reach radius of evaluation (0.89 m), episodes of ``eval.seconds``, curriculum off. For each
 level in ``eval.levels`` every robot is put on that level (a random one of ``eval.variants``
@@ -57,8 +58,16 @@ class LevelRecord:
     steps: int  # policy steps simulated
 
 
+def eval_seed(cfg: DictConfig) -> tuple[int, str]:
+    """The evaluation's base seed and where it came from: ``eval.seed`` when set, else the
+    run's ``seed`` (``seed=987654 mode=eval`` used to equal ``seed=0``: eval.seed was 0)."""
+    if cfg.eval.seed is None:
+        return int(cfg.seed), "seed"
+    return int(cfg.eval.seed), "eval.seed"
+
+
 def run_config(cfg: DictConfig, run: int) -> DictConfig:
-    """The config of run ``run``: seed ``eval.seed + run``, the eval's variants and
+    """The config of run ``run``: seed :func:`eval_seed` ``+ run``, the eval's variants and
     categories in the trail. Levels must exist in the trail (they set the difficulty)."""
     ev = cfg.eval
     bad = [lv for lv in ev.levels if not 0 <= lv < cfg.trail.levels]
@@ -68,7 +77,7 @@ def run_config(cfg: DictConfig, run: int) -> DictConfig:
     trail = {"variants": ev.variants}
     if ev.categories:
         trail["categories"] = list(ev.categories)
-    return OmegaConf.merge(cfg, {"seed": ev.seed + run, "trail": trail})
+    return OmegaConf.merge(cfg, {"seed": eval_seed(cfg)[0] + run, "trail": trail})
 
 
 def eval_env_settings(cfg: DictConfig, run: int) -> tuple[DictConfig, int, dict]:
@@ -172,6 +181,9 @@ def evaluate(cfg: DictConfig, actor, out_dir: str | Path, label: str = "policy",
         "csv", "trajectories"}, "wall_s", "steps"}``.
     """
     ev = cfg.eval
+    seed, source = eval_seed(cfg)
+    print(f"[legoh] evaluating {label} with seed {seed} (from {source}; runs use seeds "
+          f"{seed}..{seed + ev.runs - 1})")
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = {"trajectories": out_dir / "trajectories.png"}

@@ -17,6 +17,8 @@ from omegaconf import DictConfig
 from torchrl.collectors import BaseCollector, Collector, MultiSyncCollector
 from torchrl.envs import EnvBase
 
+from legoh import keys
+
 ENV_DEVICE = torch.device("cpu")  # MuJoCo steps on the CPU, whatever the learner uses
 GIB = 1024**3
 
@@ -70,11 +72,12 @@ def make_collector(cfg: DictConfig, make_env_fn: Callable[[int], EnvBase], polic
 
     ``make_env_fn(num_envs)`` builds one env copy; it must pickle (a functools.partial of a
     module-level function), since workers build their own. ``env``: an already built env
-    with ``algo.num_envs`` envs for the in-process case (the trainer keeps a handle on it for
-    the curriculum state); with workers the curriculum lives in them. Workers split
-    ``algo.num_envs`` evenly. Each batch reshapes to (envs, time) with
-    ``batch.reshape(-1, batch.shape[-1])`` and may sit on the CPU: the trainer moves it to
-    ``policy_device(cfg)``.
+    with ``algo.num_envs`` envs, stepped in-process by the collector; with workers it only
+    carries the curriculum: worker ``i`` starts from its slice of ``env``'s levels and step
+    counter (a resumed run's), and :func:`mirror_curriculum` copies theirs back after each
+    batch, so checkpoints keep the real one. Workers split ``algo.num_envs`` evenly. Each
+    batch reshapes to (envs, time) with ``batch.reshape(-1, batch.shape[-1])`` and may sit
+    on the CPU: the trainer moves it to ``policy_device(cfg)``.
     """
     per_worker = envs_per_worker(cfg)
     workers = int(cfg.collector.workers)
@@ -86,7 +89,8 @@ def make_collector(cfg: DictConfig, make_env_fn: Callable[[int], EnvBase], polic
         return _make_local(cfg, make_env_fn, policy, frames_per_batch, total_frames, env,
                            per_worker)
     if kind == "ray":
-        return _make_ray(cfg, make_env_fn, policy, frames_per_batch, total_frames, per_worker)
+        return _make_ray(cfg, make_env_fn, policy, frames_per_batch, total_frames, per_worker,
+                         env)
     raise ValueError(f"unknown collector {kind!r}; choose collector=sync or collector=ray")
 
 
@@ -111,8 +115,8 @@ def _make_local(cfg, make_env_fn, policy, frames_per_batch, total_frames, env, p
                          total_frames=total_frames,
                          auto_register_policy_transforms=False,  # the policies are stateless
                          **devices)
-    factory = _WorkerEnv(make_env_fn, per_worker)
-    collector = MultiSyncCollector([factory] * cfg.collector.workers, policy,
+    collector = MultiSyncCollector(_worker_factories(make_env_fn, per_worker,
+                                                     cfg.collector.workers, env), policy,
                                    frames_per_batch=frames_per_batch,
                                    total_frames=total_frames,
                                    auto_register_policy_transforms=False, **devices)
@@ -120,7 +124,7 @@ def _make_local(cfg, make_env_fn, policy, frames_per_batch, total_frames, env, p
     return collector
 
 
-def _make_ray(cfg, make_env_fn, policy, frames_per_batch, total_frames, per_worker
+def _make_ray(cfg, make_env_fn, policy, frames_per_batch, total_frames, per_worker, env
               ) -> BaseCollector:
     try:
         from torchrl.collectors.distributed import RayCollector
@@ -136,9 +140,8 @@ def _make_ray(cfg, make_env_fn, policy, frames_per_batch, total_frames, per_work
     remote = {"num_cpus": ray_cfg.cpus_per_worker,
               "num_gpus": ray_cfg.gpus_per_worker or None,
               "memory": int(ray_cfg.memory_per_worker * GIB)}
-    factory = _WorkerEnv(make_env_fn, per_worker)
     collector = RayCollector(
-        [factory] * ray_cfg.workers, policy,
+        _worker_factories(make_env_fn, per_worker, ray_cfg.workers, env), policy,
         frames_per_batch=frames_per_batch, total_frames=total_frames,
         env_device=ENV_DEVICE, policy_device=worker_policy_device(cfg),
         storing_device=ENV_DEVICE,
@@ -151,12 +154,44 @@ def _make_ray(cfg, make_env_fn, policy, frames_per_batch, total_frames, per_work
     return collector
 
 
-class _WorkerEnv:
-    """``make_env_fn(num_envs)`` as the zero-argument factory a remote collector calls."""
+def mirror_curriculum(collector: BaseCollector, env: EnvBase, batch) -> None:
+    """With workers, copy their curriculum into the learner's (never stepped) ``env``: each
+    env's level at the batch's last step and the step counter (+ the batch's T steps).
 
-    def __init__(self, make_env_fn: Callable[[int], EnvBase], num_envs: int) -> None:
+    ``batch`` is (envs, T), envs in worker order. A level that changes at the very last
+    reset shows in the next batch: a checkpoint may lag it by one batch. In-process the
+    collector steps ``env`` itself: nothing to do.
+    """
+    if isinstance(collector, Collector):
+        return
+    base = getattr(env, "base_env", env)  # the HikingEnv under a stage-2 TransformedEnv
+    base.level[:] = batch["next", keys.LEVEL][:, -1].cpu().numpy()
+    base.global_steps += int(batch.shape[-1])
+
+
+def _worker_factories(make_env_fn, per_worker: int, workers: int, env: EnvBase | None
+                      ) -> list[_WorkerEnv]:
+    """One factory per worker; each carries its slice of ``env``'s curriculum (if given)."""
+    base = getattr(env, "base_env", env)
+    return [_WorkerEnv(make_env_fn, per_worker, None if base is None else {
+        "level": base.level[i * per_worker:(i + 1) * per_worker].copy(),
+        "global_steps": int(base.global_steps)}) for i in range(workers)]
+
+
+class _WorkerEnv:
+    """``make_env_fn(num_envs)`` as the zero-argument factory a remote collector calls; the
+    env starts from ``curriculum`` (levels, step counter) when given."""
+
+    def __init__(self, make_env_fn: Callable[[int], EnvBase], num_envs: int,
+                 curriculum: dict | None = None) -> None:
         self.make_env_fn = make_env_fn
         self.num_envs = num_envs
+        self.curriculum = curriculum
 
     def __call__(self) -> EnvBase:
-        return self.make_env_fn(self.num_envs)
+        env = self.make_env_fn(self.num_envs)
+        if self.curriculum is not None:
+            base = getattr(env, "base_env", env)
+            base.level[:] = self.curriculum["level"]
+            base.global_steps = self.curriculum["global_steps"]
+        return env

@@ -29,7 +29,13 @@ from legoh.modules.actor_critic import (
 from legoh.modules.encoders import make_adaptation_module
 from legoh.objectives.adaptation import adaptation_loss
 from legoh.objectives.ppo import make_ppo, ppo_update
-from legoh.train.collect import make_collector, policy_device, sync_weights
+from legoh.runs import GracefulStop, iterations_left, mujoco_log_in, run_lock, warn_diverged
+from legoh.train.collect import (
+    make_collector,
+    mirror_curriculum,
+    policy_device,
+    sync_weights,
+)
 
 
 @dataclass
@@ -65,6 +71,7 @@ def batch_scalars(batch) -> dict[str, float]:
         "level_mean": float(nxt[keys.LEVEL].float().mean()),
         "reached_frac": float(nxt[keys.REACHED].float().sum() / max(done.sum().item(), 1.0)),
         "fell_frac": float(nxt[keys.FELL].float().sum() / max(done.sum().item(), 1.0)),
+        "diverged": float(nxt[keys.DIVERGED].sum()),  # envs reset for a diverged simulation
         "progress": float(nxt[keys.PROGRESS].float().mean()),
     }
     for name, value in nxt[keys.REWARD_TERMS].items():
@@ -73,20 +80,25 @@ def batch_scalars(batch) -> dict[str, float]:
 
 
 def train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None = None,
-                 on_iteration=None) -> OracleRun:
+                 on_iteration=None, resume_hint: str | None = None) -> OracleRun:
     """Train the oracle for ``cfg.algo.total_frames`` env steps; returns the trained actor.
 
     ``on_iteration(it, stats, actor)``, if given, runs after each iteration is logged (the
     learn-to-walk benchmark evaluates milestones there); returning True stops training.
+    SIGINT / SIGTERM end the run after the iteration under way with a checkpoint, closed
+    logs and the command that resumes it (``resume_hint``; default ``python run.py ...
+    resume=<checkpoint>``), then exit (:class:`legoh.runs.GracefulStop`). A second run into
+    ``out_dir`` while this one lives is refused (:func:`legoh.runs.run_lock`).
     """
     from legoh.threads import torch_threads
 
-    with torch_threads(cfg.algo.torch_threads):
-        return _train_oracle(cfg, out_dir, resume, on_iteration)
+    with (run_lock(out_dir), mujoco_log_in(out_dir), torch_threads(cfg.algo.torch_threads),
+          GracefulStop() as stop):
+        return _train_oracle(cfg, out_dir, resume, on_iteration, stop, resume_hint)
 
 
 def _train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None,
-                  on_iteration=None) -> OracleRun:
+                  on_iteration, stop: GracefulStop, resume_hint: str | None) -> OracleRun:
     algo = cfg.algo
     out_dir.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(cfg.seed)
@@ -111,9 +123,10 @@ def _train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None,
 
     frames_per_batch = algo.num_envs * algo.steps_per_env
     iterations = max(1, algo.total_frames // frames_per_batch)
+    left = iterations_left(start, iterations, frames_per_batch, algo.total_frames, resume)
     collector = make_collector(cfg, functools.partial(make_env, cfg), actor, frames_per_batch,
-                               (iterations - start) * frames_per_batch, env=env)
-    csv = ScalarCSV(out_dir / "train.csv", resume=bool(resume))
+                               left * frames_per_batch, env=env)
+    csv = ScalarCSV(out_dir / "train.csv", resume=bool(resume), until=start)
     mcap = McapLog(out_dir, stem="train")
     ckpt_path = out_dir / "oracle.pt"
     resolved = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
@@ -128,7 +141,7 @@ def _train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None,
     bar = tqdm(total=iterations, initial=start, desc="oracle PPO", unit="it")
     it = start
     tick = time.perf_counter()
-    for batch in collector:
+    for batch in stop.batches(collector):
         # (envs, time) on the learner's device, whatever the collector
         batch = batch.reshape(-1, batch.shape[-1]).to(device)
         with torch.no_grad():
@@ -140,6 +153,7 @@ def _train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None,
         adapt_optim.step()
         stats["loss_adaptation"] = float(adapt.detach())
         sync_weights(collector)  # the workers act with the updated actor from the next batch
+        mirror_curriculum(collector, env, batch)  # workers' levels -> checkpoint
         stats.update(batch_scalars(batch))
         now = time.perf_counter()
         stats["frames_per_s"] = frames_per_batch / (now - tick)
@@ -158,8 +172,9 @@ def _train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None,
     collector.shutdown()
     csv.close()
     mcap.close()
-    if it == start:  # nothing left to train: still leave a checkpoint behind
+    if it == start or stop.signum:  # nothing trained, or a signal: leave a checkpoint behind
         checkpoint(it)
+    stop.exit_if_signalled(ckpt_path, resume_hint)
     return OracleRun(actor=actor, checkpoint=ckpt_path, csv=csv.path, mcap=mcap.path,
                      iterations=it)
 
@@ -184,6 +199,7 @@ def record_iteration(it: int, iterations: int, stats: dict, batch, algo, csv: Sc
     at the last one."""
     csv.write(it, stats)
     mcap.log_scalars(it, stats)
+    warn_diverged(csv.path.parent, it, stats.get("diverged", 0.0))
     if it % algo.trajectory_every == 0 or it == iterations:
         log_trajectory(mcap, it, batch, dt)
     if it % algo.checkpoint_every == 0 or it == iterations:

@@ -35,6 +35,13 @@ from legoh.modules.actor_critic import LOC
 from legoh.modules.students import Student, StudentDims, make_student, unroll
 from legoh.objectives.distill import distillation_loss
 from legoh.objectives.ppo import make_ppo, ppo_update
+from legoh.runs import (
+    GracefulStop,
+    iterations_left,
+    mujoco_log_in,
+    resume_command,
+    run_lock,
+)
 from legoh.train.oracle import (
     batch_scalars,
     build_oracle,
@@ -92,7 +99,8 @@ def ensure_oracle(cfg: DictConfig) -> Path:
     print(f"[legoh] no oracle given: training one ({stage1.algo.total_frames} frames) in {out}")
     out.mkdir(parents=True, exist_ok=True)
     (out / "config.yaml").write_text(OmegaConf.to_yaml(stage1, resolve=True))
-    run = train_oracle(stage1, out, resume=resume)
+    hint = f"{resume_command(None)}   # the same command: it resumes the oracle in {out}"
+    run = train_oracle(stage1, out, resume=resume, resume_hint=hint)
     done.write_text(f"{run.iterations} iterations\n")
     return run.checkpoint
 
@@ -268,12 +276,19 @@ def train_student(cfg: DictConfig, out_dir: Path, resume: str | None = None) -> 
     """Train ``cfg.algo.student`` for ``cfg.algo.total_frames`` env steps."""
     from legoh.threads import torch_threads
 
-    with torch_threads(cfg.algo.torch_threads):
-        return _train_student(cfg, out_dir, resume)
+    with (run_lock(out_dir), mujoco_log_in(out_dir), torch_threads(cfg.algo.torch_threads),
+          GracefulStop() as stop):
+        return _train_student(cfg, out_dir, resume, stop)
 
 
-def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None) -> StudentRun:
-    from legoh.train.collect import make_collector, policy_device, sync_weights
+def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None,
+                   stop: GracefulStop) -> StudentRun:
+    from legoh.train.collect import (
+    make_collector,
+    mirror_curriculum,
+    policy_device,
+    sync_weights,
+)
 
     algo = cfg.algo
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -310,11 +325,12 @@ def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None) -> Studen
 
     frames_per_batch = algo.num_envs * algo.steps_per_env
     iterations = max(1, algo.total_frames // frames_per_batch)
+    left = iterations_left(start, iterations, frames_per_batch, algo.total_frames, resume)
     collector = make_collector(cfg, functools.partial(make_student_env, cfg,
                                                       state_shapes=shapes),
                                student.policy, frames_per_batch,
-                               (iterations - start) * frames_per_batch, env=env)
-    csv = ScalarCSV(out_dir / "train.csv", resume=bool(resume))
+                               left * frames_per_batch, env=env)
+    csv = ScalarCSV(out_dir / "train.csv", resume=bool(resume), until=start)
     mcap = McapLog(out_dir, stem="train")
     ckpt_path = out_dir / f"{algo.name}.pt"
     resolved = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
@@ -329,7 +345,7 @@ def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None) -> Studen
 
     bar = tqdm(total=iterations, initial=start, desc=f"{algo.name} ({algo.student})", unit="it")
     it, tick = start, time.perf_counter()
-    for batch in collector:
+    for batch in stop.batches(collector):
         clock = {"collect": time.perf_counter()}
         batch = batch.reshape(-1, batch.shape[-1]).to(device)  # (envs, time) on the learner
         label_with_oracle(oracle, batch)
@@ -348,6 +364,7 @@ def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None) -> Studen
         stats.update(distill(student, batch, cfg, distill_optim, prior_loss, gen))
         clock["distill"] = time.perf_counter()
         sync_weights(collector)  # the workers act with the updated student from the next batch
+        mirror_curriculum(collector, env, batch)  # workers' levels -> checkpoint
         stats.update(batch_scalars(batch))
         marks = [tick, *clock.values()]
         stats.update({f"time/{k}": t1 - t0 for k, t0, t1 in zip(clock, marks[:-1], marks[1:],
@@ -365,8 +382,9 @@ def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None) -> Studen
     collector.shutdown()
     csv.close()
     mcap.close()
-    if it == start:
+    if it == start or stop.signum:  # nothing trained, or a signal: leave a checkpoint behind
         checkpoint(it)
+    stop.exit_if_signalled(ckpt_path)
     return StudentRun(student=student, checkpoint=ckpt_path, csv=csv.path, mcap=mcap.path,
                       iterations=it, oracle=oracle_path)
 
