@@ -10,7 +10,7 @@ class OracleConfig:
     name: str = "oracle"
     num_envs: int = 256  # overrides env.num_envs for training
     steps_per_env: int = 24  # policy steps per env per iteration
-    total_frames: int = 1_500_000  # env steps of the main job: ~10 min here, then ~2 min of benchmark
+    total_frames: int = 1_500_000  # env steps of the main job: ~10 min here, then the benchmark
     lr: float = 1e-3  # rsl_rl / mjlab; adapted on the exact Gaussian KL
     desired_kl: float = 0.01  # adaptive learning rate target
     clip_epsilon: float = 0.2

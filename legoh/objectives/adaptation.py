@@ -10,7 +10,6 @@ from tensordict.nn import TensorDictModule
 
 from legoh.modules.encoders import PRIV_LATENT, PRIV_LATENT_EST
 
-
 MAX_ROWS = 2048  # a random subset of the batch: the estimator never feeds PPO, so a
 # smaller batch costs the policy nothing, and the full 6k-row batch cost ~10 % of an update
 
