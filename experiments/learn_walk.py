@@ -86,12 +86,13 @@ def main() -> None:
     parser.add_argument("--minutes", type=float, default=60.0, help="training wall-clock budget")
     parser.add_argument("--frames", type=int, default=50_000_000, help="frame budget")
     parser.add_argument("--eval-every", type=float, default=3.0, help="minutes between evals")
+    parser.add_argument("--tag", default="", help="suffix of the run folder (a variant)")
     parser.add_argument("--summarize", action="store_true")
     parser.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. algo.num_envs=512")
     args = parser.parse_args()
     if args.summarize:
         return summarize()
-    out = OUT / f"{args.robot}-{args.preset}-s{args.seed}"
+    out = OUT / f"{args.robot}-{args.preset}-s{args.seed}{'-' + args.tag if args.tag else ''}"
     out.mkdir(parents=True, exist_ok=True)
     cfg = compose_run(args.robot, args.seed, args.preset, args.trail,
                       [f"algo.total_frames={args.frames}", *args.overrides])

@@ -135,3 +135,40 @@ def test_worker_curriculum_reaches_the_checkpoint_and_comes_back_on_resume(
     header, row = last[0].split(","), last[-1].split(",")
     assert float(row[header.index("level_mean")]) == 2.0
     assert load_checkpoint(second.checkpoint)["curriculum"]["global_steps"] == 2 * STEPS
+
+
+def test_overlapped_collection_trains_and_acts_with_synced_weights(tmp_path: Path) -> None:
+    """collector.overlap=true: one worker collects while the learner updates; its batches
+    have the (envs, time) shape and, after a sync, come from the learner's new weights (one
+    batch of lag: the batch already in flight was acted with the previous ones)."""
+    cfg = compose_config(*TINY, "collector.overlap=true", "algo.total_frames=96")
+    run = train_oracle(cfg, tmp_path)
+    assert run.iterations == 3 and run.checkpoint.exists()
+    env = make_env(cfg, num_envs=NUM_ENVS)
+    torch.manual_seed(0)
+    _, actor, _, _ = build_oracle(env, cfg)
+    collector = make_collector(cfg, functools.partial(make_env, cfg), actor,
+                               NUM_ENVS * STEPS, NUM_ENVS * STEPS * 4, env=env)
+    batches = []
+    for i, batch in enumerate(collector):
+        batches.append(batch.reshape(-1, batch.shape[-1]))
+        if i == 0:
+            with torch.no_grad():
+                for p in actor.parameters():
+                    p.add_(0.1)
+            sync_weights(collector)
+        if i == 3:
+            break
+    collector.shutdown()
+    assert batches[0].shape == (NUM_ENVS, STEPS)
+    last = batches[-1]
+    with torch.no_grad():
+        fresh = actor(last.select(*actor.in_keys).clone())
+    torch.testing.assert_close(last[LOC], fresh[LOC])
+
+
+def test_overlap_takes_one_worker() -> None:
+    cfg = compose_config(*TINY, "collector.overlap=true", "collector.workers=2")
+    env = make_env(cfg, num_envs=NUM_ENVS)
+    with pytest.raises(ValueError, match="collector.overlap"):
+        make_collector(cfg, functools.partial(make_env, cfg), None, 16, 32, env=env)

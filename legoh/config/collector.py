@@ -19,6 +19,9 @@ class CollectorConfig:
     # where the workers run the policy: None follows the learner (top-level ``device``);
     # the envs always step on the CPU (MuJoCo)
     policy_device: str | None = None
+    # collect the next batch in a worker process while the learner updates (policy lag of
+    # one update, PPO's ratio corrects for it); workers=1 only
+    overlap: bool = False
 
 
 @dataclass

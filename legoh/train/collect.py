@@ -14,7 +14,7 @@ from collections.abc import Callable
 
 import torch
 from omegaconf import DictConfig
-from torchrl.collectors import BaseCollector, Collector, MultiSyncCollector
+from torchrl.collectors import BaseCollector, Collector, MultiAsyncCollector, MultiSyncCollector
 from torchrl.envs import EnvBase
 
 from legoh import keys
@@ -89,6 +89,9 @@ def make_collector(cfg: DictConfig, make_env_fn: Callable[[int], EnvBase], polic
         return _make_local(cfg, make_env_fn, policy, frames_per_batch, total_frames, env,
                            per_worker)
     if kind == "ray":
+        if cfg.collector.overlap:
+            raise ValueError("collector.overlap=true is for collector=sync (Ray actors already "
+                             "collect apart from the learner)")
         return _make_ray(cfg, make_env_fn, policy, frames_per_batch, total_frames, per_worker,
                          env)
     raise ValueError(f"unknown collector {kind!r}; choose collector=sync or collector=ray")
@@ -108,6 +111,20 @@ def sync_weights(collector: BaseCollector) -> None:
 def _make_local(cfg, make_env_fn, policy, frames_per_batch, total_frames, env, per_worker
                 ) -> BaseCollector:
     devices = {"env_device": ENV_DEVICE, "policy_device": worker_policy_device(cfg)}
+    if cfg.collector.overlap:
+        # one worker process collects batch k+1 with the weights of update k-1 while the
+        # learner runs update k (torchrl's MultiAsyncCollector): the envs and the update
+        # share the cores instead of taking turns (bench_train.md: loop / bare env).
+        if cfg.collector.workers != 1:
+            raise ValueError(f"collector.overlap=true takes collector.workers=1 (got "
+                             f"{cfg.collector.workers}): one process overlaps its collection "
+                             f"with the update")
+        collector = MultiAsyncCollector(
+            _worker_factories(make_env_fn, per_worker, 1, env), policy,
+            frames_per_batch=frames_per_batch, total_frames=total_frames,
+            auto_register_policy_transforms=False, **devices)
+        collector.set_seed(cfg.seed)
+        return collector
     if cfg.collector.workers == 1:
         if env is None:
             env = make_env_fn(per_worker)
