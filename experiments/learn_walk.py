@@ -101,6 +101,11 @@ def main() -> None:
     milestones: dict[str, dict | None] = {"a": None, "b": None, "c": None}
     rows: list[dict] = []
     clock = {"train_s": 0.0, "tick": time.perf_counter(), "next_eval": 0.0}
+    resume = out / "oracle.pt"
+    if resume.exists() and (out / "evals.csv").exists():  # a killed run: keep its records
+        rows, milestones = resume_records(out, resume)
+        clock["train_s"] = 60.0 * rows[-1]["minutes"] if rows else 0.0
+        clock["next_eval"] = clock["train_s"] + 60.0 * args.eval_every
 
     def stamp(it: int) -> dict:
         return {"iteration": it, "frames": it * frames_per_it,
@@ -127,7 +132,6 @@ def main() -> None:
         clock["tick"] = time.perf_counter()
         return stop
 
-    resume = out / "oracle.pt"
     run = train_oracle(cfg, out, resume=str(resume) if resume.exists() else None,
                        on_iteration=on_iteration)
     write_results(out, args, cfg, rows, milestones)
@@ -137,6 +141,21 @@ def main() -> None:
         render_policy_video(cfg, run.actor, out / "final_policy.mp4")
     except ImportError:
         print("[learn_walk] no renderer (legoh.play) yet: video skipped")
+
+
+def resume_records(out: Path, checkpoint: Path) -> tuple[list[dict], dict]:
+    """Evaluations and milestones of a killed run, up to its checkpoint's iteration (the
+    training clock resumes from the last evaluation kept; the time after it is lost)."""
+    import torch
+
+    it = int(torch.load(checkpoint, map_location="cpu", weights_only=False)["iteration"])
+    with open(out / "evals.csv") as f:
+        rows = [{k: float(v) for k, v in r.items()} for r in csv.DictReader(f)]
+    rows = [r for r in rows if r["iteration"] <= it]
+    meta = json.loads((out / "milestones.json").read_text())["milestones"]
+    milestones = {k: (m if m is not None and m["iteration"] <= it else None)
+                  for k, m in meta.items()}
+    return rows, milestones
 
 
 def write_results(out: Path, args, cfg, rows: list[dict], milestones: dict) -> None:
