@@ -106,6 +106,7 @@ def main() -> None:  # noqa: PLR0915 - one measurement table after another
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[64, 256, 512, 1024])
     parser.add_argument("--iterations", type=int, default=3)
+    parser.add_argument("--note", default="", help="a line on the conditions of this run")
     args = parser.parse_args()
     torch.set_num_threads(1)
     rows = []
@@ -141,9 +142,9 @@ def main() -> None:  # noqa: PLR0915 - one measurement table after another
 
     (OUT / "bench_train.json").write_text(json.dumps(
         {"sizes": rows, "update_variants_at_N": n, "variants": var_rows,
-         "torch_threads": 1, "cpus": os.cpu_count()}, indent=2))
+         "torch_threads": 1, "cpus": os.cpu_count(), "note": args.note}, indent=2))
     lines = ["# Oracle training loop vs its env (frames/s, one run, 1 torch thread, "
-             f"{os.cpu_count()} CPUs)", "",
+             f"{os.cpu_count()} CPUs)", "", *([args.note, ""] if args.note else []),
              "| N | bare env | collection | update | loop | loop / bare | loop, overlap | "
              "overlap / bare | update share |",
              "|---|---|---|---|---|---|---|---|---|"]
