@@ -196,19 +196,20 @@ def plot_runs(runs: list[Path], path: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 4, figsize=(18, 4))
-    for run in runs:
+    for i, run in enumerate(runs):  # one colour per run; dashed: RandomMix L0 + DR
         if not (run / "evals.csv").exists():
             continue
         e = read_evals(run)
-        x = e["frames"] / 1e6
-        axes[0].plot(x, e["train_episode_s"], label=run.name)
-        axes[1].plot(x, e["train_fell"], label=run.name)
-        axes[2].plot(x, e["b_distance_m"], label=f"{run.name} flat")
-        axes[2].plot(x, e["c_distance_m"], "--", label=f"{run.name} RandomMix L0 + DR")
-        axes[3].plot(x, 100 * e["b_walked_share"], label=f"{run.name} flat")
-        axes[3].plot(x, 100 * e["c_walked_share"], "--", label=f"{run.name} RandomMix")
+        x, c = e["frames"] / 1e6, f"C{i}"
+        axes[0].plot(x, e["train_episode_s"], color=c, label=run.name)
+        axes[1].plot(x, e["train_fell"], color=c)
+        axes[2].plot(x, e["b_distance_m"], color=c)
+        axes[2].plot(x, e["c_distance_m"], "--", color=c)
+        axes[3].plot(x, 100 * e["b_walked_share"], color=c)
+        axes[3].plot(x, 100 * e["c_walked_share"], "--", color=c)
     titles = ["training episode length (s)", "training falls / ended episodes",
-              "eval: metres toward the terminus (mean of 16)", "eval: % walking >= 10 m"]
+              "eval: m toward the terminus (solid flat, dashed RandomMix+DR)",
+              "eval: % of 16 walking >= 10 m"]
     for ax, t in zip(axes, titles, strict=True):
         ax.set_title(t)
         ax.set_xlabel("frames (M)")
@@ -216,7 +217,7 @@ def plot_runs(runs: list[Path], path: Path) -> None:
     axes[0].axhline(15, color="k", lw=0.5)
     axes[2].axhline(WALK_M, color="k", lw=0.5)
     axes[3].axhline(100 * WALK_SHARE, color="k", lw=0.5)
-    axes[3].legend(fontsize=7)
+    axes[0].legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=90)
     plt.close(fig)
