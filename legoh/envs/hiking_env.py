@@ -547,6 +547,7 @@ class HikingEnv(EnvBase):
         middle = math3d.to_yaw_frame(self.trails.middle[self.tile][:, None], pos[:, :2],
                                      yaw)[:, 0]
         dist = np.linalg.norm(terminus, axis=1, keepdims=True)
+        clock = 2 * np.pi * self._gait_phase()[:, :1]  # left leg's phase
         gravity = math3d.world_to_body(rot, np.tile([0.0, 0.0, -1.0], (n, 1)))
         proprio = np.concatenate([
             qvel[:, 3:6] * ANG_VEL_SCALE,
@@ -556,8 +557,7 @@ class HikingEnv(EnvBase):
             self.last_action,
             terminus / np.maximum(dist, 1e-6),  # direction to the terminus (yaw frame)
             np.minimum(dist, 20.0) / 20.0,  # distance, normalised and capped at 20 m
-            np.sin(2 * np.pi * self._gait_phase()[:, :1]),  # the gait clock: a deployable
-            np.cos(2 * np.pi * self._gait_phase()[:, :1]),  # input, students see it too
+            np.sin(clock), np.cos(clock),  # the gait clock: a deployable input, students too
         ], axis=1).astype(np.float32)
         shifted = np.concatenate([self.history[:, 1:], proprio[:, None]], axis=1)
         self.history = shifted if advance is None else np.where(advance[:, None, None],
