@@ -83,7 +83,7 @@ def update_time(cfg, batch, loss, gae, opt, adaptation, aopt, actor) -> float:
     batch = batch.reshape(-1, batch.shape[-1])
     with torch.no_grad():
         gae(batch)
-    ppo_update(loss, opt, batch.reshape(-1), cfg.algo, actor=actor)
+    ppo_update(loss, opt, batch.reshape(-1), cfg.algo, exact_kl=True)
     a = adaptation_loss(adaptation, actor, batch.reshape(-1))
     aopt.zero_grad()
     a.backward()

@@ -164,3 +164,58 @@ def test_adaptive_learning_rate_rule() -> None:
     assert adapt_learning_rate(1e-3, kl=0.001, desired_kl=0.01) == pytest.approx(1.5e-3)
     assert adapt_learning_rate(1e-3, kl=0.01, desired_kl=0.01) == pytest.approx(1e-3)
     assert adapt_learning_rate(1e-5, kl=1.0, desired_kl=0.01) == pytest.approx(1e-5)  # clamp
+
+
+def _fixed_batch(*overrides: str):
+    cfg = compose_config(*TINY, "env.only_positive_rewards=false", *overrides)
+    env = make_env(cfg, num_envs=4)
+    torch.manual_seed(0)
+    _, actor, critic, _ = build_oracle(env, cfg)
+    loss, gae = make_ppo(actor, critic, cfg.algo)
+    with torch.no_grad():
+        batch = env.rollout(16, actor, break_when_any_done=False)
+        gae(batch)
+    env.close()
+    return cfg, actor, loss, batch.reshape(-1)
+
+
+def test_exact_kl_reads_the_losss_own_forward_pass() -> None:
+    # The KL that steers the learning rate comes from the distribution the loss computed, not
+    # a second actor forward: it must equal the KL of a fresh forward on the same minibatch.
+    from legoh.modules.actor_critic import LOC, SCALE
+    from legoh.objectives.ppo import gaussian_kl
+
+    cfg, actor, loss, data = _fixed_batch()
+    optimizer = torch.optim.Adam(loss.parameters(), lr=1e-2)
+    algo = cfg.algo.copy()
+    algo.desired_kl, algo.epochs, algo.minibatches = 0.0, 1, 1
+    ppo_update(loss, optimizer, data, algo, exact_kl=True)  # move the policy off the data's
+    stats = ppo_update(loss, torch.optim.Adam(loss.parameters(), lr=0.0), data, algo,
+                       exact_kl=True)
+    with torch.no_grad():
+        new = actor(data.select(*actor.in_keys).clone())
+    expected = float(gaussian_kl(data[LOC], data[SCALE], new[LOC], new[SCALE]))
+    assert expected > 1e-6  # the first update moved the policy
+    assert stats["kl_exact"] == pytest.approx(expected, rel=1e-4)
+
+
+def test_bfloat16_update_matches_float32_within_its_rounding() -> None:
+    # update_precision=bfloat16: autocast forward passes. On the acting policy (lr 0) the
+    # ratio is 1 up to rounding: KL and clip fraction far below the trust region's 0.01 / 0.2.
+    cfg, _, loss, data = _fixed_batch("algo.update_precision=bfloat16")
+    algo = cfg.algo.copy()
+    algo.desired_kl, algo.epochs, algo.minibatches = 0.0, 1, 1
+    still = ppo_update(loss, torch.optim.Adam(loss.parameters(), lr=0.0), data, algo,
+                       exact_kl=True)
+    assert still["kl_exact"] < 1e-3 and still["clip_fraction"] < 0.01
+    before = [p.detach().clone() for p in loss.parameters()]
+    ppo_update(loss, torch.optim.Adam(loss.parameters(), lr=1e-3), data, algo, exact_kl=True)
+    assert all(p.dtype == torch.float32 for p in loss.parameters())  # weights stay float32
+    assert any(not torch.equal(a, p) for a, p in zip(before, loss.parameters(), strict=True))
+
+
+def test_update_precision_names_its_choices() -> None:
+    with pytest.raises(Exception) as err:  # Hydra's override error, OmegaConf's as its cause
+        compose_config(*TINY, "algo.update_precision=float16")
+    cause = str(err.value.__cause__)
+    assert "update_precision" in cause and "float32, bfloat16" in cause

@@ -1,6 +1,14 @@
 """Algorithm config schemas (``conf/algo/*.yaml``)."""
 
 from dataclasses import dataclass, field
+from enum import Enum
+
+
+class Precision(Enum):
+    """Dtype of the PPO minibatch forward passes (``algo.update_precision``)."""
+
+    float32 = "float32"
+    bfloat16 = "bfloat16"  # autocast: matrix products in bfloat16 (fast with AMX / tensor cores)
 
 
 @dataclass
@@ -26,6 +34,7 @@ class OracleConfig:
     # None: a linear action mean (rsl_rl, mjlab); a number B: the paper's B * tanh (EP: 4.8)
     tanh_bound: float | None = None
     max_grad_norm: float = 1.0
+    update_precision: Precision = Precision.float32  # bfloat16: autocast, objectives/ppo.py
     adaptation_lr: float = 1e-3  # the adaptation module's own optimiser
     checkpoint_every: int = 20  # iterations between checkpoints (and one at the end)
     trajectory_every: int = 10  # iterations between trajectories logged to MCAP

@@ -146,7 +146,7 @@ def _train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None,
         batch = batch.reshape(-1, batch.shape[-1]).to(device)
         with torch.no_grad():
             gae(batch)
-        stats = ppo_update(loss, optimizer, batch.reshape(-1), algo, gen, actor=actor)
+        stats = ppo_update(loss, optimizer, batch.reshape(-1), algo, gen, exact_kl=True)
         adapt = adaptation_loss(adaptation, actor, batch.reshape(-1), gen)
         adapt_optim.zero_grad()
         adapt.backward()
