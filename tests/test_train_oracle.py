@@ -123,15 +123,7 @@ def test_resume_into_another_robot_is_refused(tmp_path: Path) -> None:
 def test_ppo_loss_falls_on_a_fixed_batch() -> None:
     # Unclipped rewards: a 16-step batch of clipped rewards is mostly zeros, which leaves the
     # critic nothing to fit.
-    cfg = compose_config(*TINY, "env.only_positive_rewards=false")
-    env = make_env(cfg, num_envs=4)
-    torch.manual_seed(0)
-    _, actor, critic, _ = build_oracle(env, cfg)
-    loss, gae = make_ppo(actor, critic, cfg.algo)
-    with torch.no_grad():
-        batch = env.rollout(16, actor, break_when_any_done=False)
-        gae(batch)
-    data = batch.reshape(-1)
+    cfg, actor, loss, data = _fixed_batch()
     optimizer = torch.optim.Adam(loss.parameters(), lr=3e-4)
 
     def losses() -> dict[str, float]:
@@ -156,7 +148,6 @@ def test_ppo_loss_falls_on_a_fixed_batch() -> None:
     after = losses()
     assert after["loss_critic"] < before["loss_critic"]
     assert surrogate() > gain_before
-    env.close()
 
 
 def test_adaptive_learning_rate_rule() -> None:
