@@ -12,7 +12,8 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from legoh import keys
 from legoh.envs.hiking_env import make_env
-from legoh.train.oracle import batch_scalars, build_oracle
+from legoh.train.oracle import build_oracle
+from legoh.train.runner import batch_scalars
 from tests.conftest import compose_config
 
 ONE_TILE = ("trail=flat", "trail.levels=1", "trail.variants=1")

@@ -41,9 +41,9 @@ class KeepDistPPOLoss(ClipPPOLoss):
 
 def make_ppo(actor, critic, cfg: OracleConfig) -> tuple[ClipPPOLoss, GAE]:
     """ClipPPOLoss (advantages normalised per minibatch) and GAE over the critic."""
-    loss = KeepDistPPOLoss(actor, critic, clip_epsilon=cfg.clip_epsilon, entropy_coeff=cfg.entropy_coef,
-                       critic_coeff=cfg.value_coef, loss_critic_type="l2", clip_value=True,
-                       normalize_advantage=True)
+    loss = KeepDistPPOLoss(actor, critic, clip_epsilon=cfg.clip_epsilon,
+                           entropy_coeff=cfg.entropy_coef, critic_coeff=cfg.value_coef,
+                           loss_critic_type="l2", clip_value=True, normalize_advantage=True)
     loss.set_keys(sample_log_prob="sample_log_prob")
     gae = GAE(gamma=cfg.gamma, lmbda=cfg.gae_lambda, value_network=critic, average_gae=False)
     return loss, gae

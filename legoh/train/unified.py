@@ -16,39 +16,22 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import torch
 from omegaconf import DictConfig, OmegaConf
 from torchrl.envs import Compose, EnvBase, InitTracker, TensorDictPrimer, TransformedEnv
-from tqdm import tqdm
 
 from legoh import keys
-from legoh.checkpoint import (
-    CheckpointError,
-    load_checkpoint,
-    make_payload,
-    save_checkpoint,
-)
+from legoh.checkpoint import CheckpointError, load_checkpoint
 from legoh.config.algo import OracleConfig
 from legoh.envs.hiking_env import make_env
-from legoh.logs import McapLog, ScalarCSV
 from legoh.modules.actor_critic import LOC
 from legoh.modules.students import Student, StudentDims, make_student, unroll
 from legoh.objectives.distill import distillation_loss
 from legoh.objectives.ppo import make_ppo, ppo_update
-from legoh.runs import (
-    GracefulStop,
-    iterations_left,
-    mujoco_log_in,
-    resume_command,
-    run_lock,
-)
-from legoh.train.oracle import (
-    batch_scalars,
-    build_oracle,
-    record_iteration,
-    restore_training,
-    train_oracle,
-)
+from legoh.runs import GracefulStop, resume_command
+from legoh.train.oracle import build_oracle, train_oracle
+from legoh.train.runner import OnPolicyRunner, training_session
 
 
 @dataclass
@@ -274,28 +257,16 @@ def distill_step(student: Student, batch, cfg: DictConfig, optim, prior_loss) ->
 
 def train_student(cfg: DictConfig, out_dir: Path, resume: str | None = None) -> StudentRun:
     """Train ``cfg.algo.student`` for ``cfg.algo.total_frames`` env steps."""
-    from legoh.threads import torch_threads
-
-    with (run_lock(out_dir), mujoco_log_in(out_dir), torch_threads(cfg.algo.torch_threads),
-          GracefulStop() as stop):
+    with training_session(cfg, out_dir) as stop:
         return _train_student(cfg, out_dir, resume, stop)
 
 
 def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None,
                    stop: GracefulStop) -> StudentRun:
-    from legoh.train.collect import (
-    make_collector,
-    mirror_curriculum,
-    policy_device,
-    sync_weights,
-)
-
     algo = cfg.algo
-    out_dir.mkdir(parents=True, exist_ok=True)
     oracle_path = ensure_oracle(cfg)
     torch.manual_seed(cfg.seed)
     gen = torch.Generator().manual_seed(cfg.seed)
-    device = policy_device(cfg)  # the learner's; the envs step on the CPU
 
     probe = make_student_env(cfg, 1, ((1,), 1))  # sizes only
     student = build_student(cfg, probe)
@@ -304,50 +275,27 @@ def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None,
     env = make_student_env(cfg, algo.num_envs, shapes)
     oracle, critic = load_oracle(cfg, oracle_path, env)
     vae, vae_optim, prior_loss = make_prior(cfg, env.action_spec.shape[-1])
+    runner = OnPolicyRunner(cfg, out_dir, env, {**student.modules(), "critic": critic}, {},
+                            student.dims.as_layout(), f"{algo.name}.pt",
+                            extra={"student": algo.student, "oracle": str(oracle_path)},
+                            desc=f"{algo.name} ({algo.student})")
     for module in (*student.modules().values(), oracle, critic, vae):
         if module is not None:
-            module.to(device)
+            module.to(runner.device)
 
     loss, gae = make_ppo(student.locomotion, critic, algo)
     ppo_optim = torch.optim.Adam(loss.parameters(), lr=algo.lr)
     distill_optim = torch.optim.Adam(
         [p for m in student.modules().values() for p in m.parameters()], lr=algo.lr)
-    models = {**student.modules(), "critic": critic}
-    optims = {"ppo": ppo_optim, "distill": distill_optim}
+    runner.optims.update(ppo=ppo_optim, distill=distill_optim)
     if vae is not None:
-        models["vae"], optims["vae"] = vae, vae_optim
-    layout = student.dims.as_layout()
-
-    start = 0
+        runner.models["vae"], runner.optims["vae"] = vae, vae_optim
     if resume:
-        start = restore_training(load_student(cfg, resume, student), models, optims, env)
-        print(f"[legoh] resumed from {resume} at iteration {start}")
+        runner.resume(load_student(cfg, resume, student))
+        print(f"[legoh] resumed from {resume} at iteration {runner.iteration}")
 
-    frames_per_batch = algo.num_envs * algo.steps_per_env
-    iterations = max(1, algo.total_frames // frames_per_batch)
-    left = iterations_left(start, iterations, frames_per_batch, algo.total_frames, resume)
-    collector = make_collector(cfg, functools.partial(make_student_env, cfg,
-                                                      state_shapes=shapes),
-                               student.policy, frames_per_batch,
-                               left * frames_per_batch, env=env)
-    csv = ScalarCSV(out_dir / "train.csv", resume=bool(resume), until=start)
-    mcap = McapLog(out_dir, stem="train")
-    ckpt_path = out_dir / f"{algo.name}.pt"
-    resolved = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
-
-    def checkpoint(iteration: int) -> None:
-        payload = make_payload(
-            models=models, optimizers=optims, iteration=iteration, robot=cfg.robot.name,
-            layout=layout, config=resolved, extra={"student": algo.student,
-                                                   "oracle": str(oracle_path)},
-            curriculum={"level": env.level.tolist(), "global_steps": env.global_steps})
-        save_checkpoint(ckpt_path, payload)
-
-    bar = tqdm(total=iterations, initial=start, desc=f"{algo.name} ({algo.student})", unit="it")
-    it, tick = start, time.perf_counter()
-    for batch in stop.batches(collector):
-        clock = {"collect": time.perf_counter()}
-        batch = batch.reshape(-1, batch.shape[-1]).to(device)  # (envs, time) on the learner
+    def update(batch) -> dict:
+        clock = {"labels": time.perf_counter()}
         label_with_oracle(oracle, batch)
         stats = {}
         if vae is not None:
@@ -363,30 +311,18 @@ def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None,
         clock["ppo"] = time.perf_counter()
         stats.update(distill(student, batch, cfg, distill_optim, prior_loss, gen))
         clock["distill"] = time.perf_counter()
-        sync_weights(collector)  # the workers act with the updated student from the next batch
-        mirror_curriculum(collector, env, batch)  # workers' levels -> checkpoint
-        stats.update(batch_scalars(batch))
-        marks = [tick, *clock.values()]
-        stats.update({f"time/{k}": t1 - t0 for k, t0, t1 in zip(clock, marks[:-1], marks[1:],
-                                                                 strict=True)})
-        now = time.perf_counter()
-        stats["frames_per_s"] = frames_per_batch / (now - tick)
-        tick = now
-        it += 1
-        record_iteration(it, iterations, stats, batch, algo, csv, mcap, env.dt, checkpoint)
-        bar.update(1)
-        bar.set_postfix(fps=f"{stats['frames_per_s']:.0f}", reward=f"{stats['reward']:.3f}",
-                        imit=f"{stats.get('distill/loss_action', float('nan')):.3f}",
-                        ep_len=f"{stats['episode_frames'] * env.dt:.1f}s")
-    bar.close()
-    collector.shutdown()
-    csv.close()
-    mcap.close()
-    if it == start or stop.signum:  # nothing trained, or a signal: leave a checkpoint behind
-        checkpoint(it)
-    stop.exit_if_signalled(ckpt_path)
-    return StudentRun(student=student, checkpoint=ckpt_path, csv=csv.path, mcap=mcap.path,
-                      iterations=it, oracle=oracle_path)
+        marks = list(clock.items())
+        stats.update({f"time/{k}": t1 - t0 for (_, t0), (k, t1) in zip(marks[:-1], marks[1:],
+                                                                        strict=True)})
+        return stats
+
+    it = runner.learn(student.policy, functools.partial(make_student_env, cfg,
+                                                          state_shapes=shapes),
+                      update, stop, resume,
+                      postfix=lambda s: {"imit": f"{s.get('distill/loss_action', np.nan):.3f}"})
+    stop.exit_if_signalled(runner.checkpoint_path)
+    return StudentRun(student=student, checkpoint=runner.checkpoint_path, csv=runner.csv_path,
+                      mcap=runner.mcap_path, iterations=it, oracle=oracle_path)
 
 
 def student_eval_env_fn(cfg: DictConfig, student: Student):
