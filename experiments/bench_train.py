@@ -5,11 +5,14 @@
 Per batch size N, in one run (these machines are noisy, so compare within a run):
   bare:       HikingEnv.step_and_maybe_reset with random actions (the ceiling);
   collection: torchrl's Collector with the oracle actor (N x steps_per_env frames a batch);
-  update:     GAE + the PPO epochs + the adaptation module on one collected batch;
+  update:     GAE + the PPO epochs + the adaptation module on one collected batch, in
+              float32 and with ``algo.update_precision=bfloat16`` (autocast);
   loop:       the real training loop (``train_oracle``), frames/s of its iterations after
-              the first; and the same with ``collector.overlap=true`` (the next batch is
-              collected in a worker process while the learner updates).
-Then update variants at the largest N (epochs x minibatches, network width): what a cheaper
+              the first: the default, then ``fast`` (bfloat16 update + ``collector.overlap``:
+              the next batch is collected in a worker process while the learner updates),
+              with MuJoCo's default threads and with ``sim.threads=1`` (one core each for
+              the env worker and the learner).
+Then update variants at the largest N (epochs x minibatches, precision): what a cheaper
 update would buy. Writes experiments/results/bench_train.{md,json}.
 """
 
@@ -27,6 +30,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 from hydra import compose, initialize_config_dir  # noqa: E402
+from omegaconf import OmegaConf  # noqa: E402
 from torchrl.collectors import Collector  # noqa: E402
 
 from legoh.config import register_configs  # noqa: E402
@@ -58,8 +62,9 @@ def bare_rate(env, steps: int) -> float:
     return env.num_envs * steps / (time.perf_counter() - t0)
 
 
-def collect_and_update(cfg, env, batches: int) -> tuple[float, float, object]:
-    """(collection frames/s, update frames/s, last batch)."""
+def collect_and_update(cfg, env, batches: int, precisions=("float32",)
+                       ) -> tuple[float, list[float], object]:
+    """(collection frames/s, update frames/s per precision, last batch)."""
     torch.manual_seed(0)
     _, actor, critic, adaptation = build_oracle(env, cfg)
     frames = cfg.algo.num_envs * cfg.algo.steps_per_env
@@ -68,14 +73,17 @@ def collect_and_update(cfg, env, batches: int) -> tuple[float, float, object]:
     loss, gae = make_ppo(actor, critic, cfg.algo)
     opt = torch.optim.Adam(loss.parameters(), lr=cfg.algo.lr)
     aopt = torch.optim.Adam(adaptation.parameters(), lr=1e-3)
-    t_col, t_upd, batch = [], [], None
+    t_col, t_upd, batch = [], {p: [] for p in precisions}, None
     tick = time.perf_counter()
     for batch in collector:
         t_col.append(time.perf_counter() - tick)
-        t_upd.append(update_time(cfg, batch, loss, gae, opt, adaptation, aopt, actor))
+        for p in precisions:  # the same batch through each precision, interleaved
+            run = OmegaConf.merge(cfg, {"algo": {"update_precision": p}})
+            t_upd[p].append(update_time(run, batch, loss, gae, opt, adaptation, aopt, actor))
         tick = time.perf_counter()
     collector.shutdown()
-    return frames / np.mean(t_col[1:]), frames / np.mean(t_upd[1:]), batch
+    return (frames / np.mean(t_col[1:]), [frames / np.mean(t_upd[p][1:]) for p in precisions],
+            batch)
 
 
 def update_time(cfg, batch, loss, gae, opt, adaptation, aopt, actor) -> float:
@@ -94,8 +102,6 @@ def update_time(cfg, batch, loss, gae, opt, adaptation, aopt, actor) -> float:
 def loop_rate(cfg, iterations: int) -> float:
     frames = cfg.algo.num_envs * cfg.algo.steps_per_env
     with tempfile.TemporaryDirectory() as tmp:
-        from omegaconf import OmegaConf
-
         run_cfg = OmegaConf.merge(cfg, {"algo": {"total_frames": frames * iterations}})
         run = train_oracle(run_cfg, Path(tmp))
         fps = read_columns(run.csv)["frames_per_s"]
@@ -109,32 +115,38 @@ def main() -> None:  # noqa: PLR0915 - one measurement table after another
     parser.add_argument("--note", default="", help="a line on the conditions of this run")
     args = parser.parse_args()
     torch.set_num_threads(1)
+    fast = ["algo.update_precision=bfloat16", "collector.overlap=true"]
     rows = []
     for n in args.sizes:
         cfg = config(n)
         env = make_env(cfg, num_envs=n)
         bare = bare_rate(env, max(50, 6000 // n))
-        col, upd, _ = collect_and_update(cfg, env, args.iterations)
+        col, (upd, upd_bf16), _ = collect_and_update(cfg, env, args.iterations,
+                                                     ("float32", "bfloat16"))
         env.close()
         loop = loop_rate(cfg, args.iterations)
-        overlap = loop_rate(config(n, "collector.overlap=true"), args.iterations + 1)
-        row = {"N": n, "bare": bare, "collection": col, "update": upd, "loop": loop,
-               "loop_over_bare": loop / bare, "loop_overlap": overlap,
-               "overlap_over_bare": overlap / bare,
+        loop_fast = loop_rate(config(n, *fast), args.iterations + 1)
+        loop_fast1 = loop_rate(config(n, *fast, "sim.threads=1"), args.iterations + 1)
+        row = {"N": n, "bare": bare, "collection": col, "update": upd, "update_bf16": upd_bf16,
+               "loop": loop, "loop_over_bare": loop / bare, "loop_fast": loop_fast,
+               "fast_over_bare": loop_fast / bare, "loop_fast_1thread": loop_fast1,
+               "fast_1thread_over_bare": loop_fast1 / bare,
                "update_share": (1 / upd) / (1 / col + 1 / upd)}
         rows.append(row)
         print(json.dumps(row), flush=True)
 
     n = args.sizes[-1]
-    variants = {"5 x 4, 512-256-128 (default)": [],
+    variants = {"5 x 4, float32 (default)": [],
+                "5 x 4, bfloat16": ["algo.update_precision=bfloat16"],
                 "5 x 2": ["algo.minibatches=2"],
                 "2 x 4": ["algo.epochs=2"],
-                "2 x 2": ["algo.epochs=2", "algo.minibatches=2"]}
+                "2 x 4, bfloat16": ["algo.epochs=2", "algo.update_precision=bfloat16"]}
     var_rows = []
     for name, extra in variants.items():
         cfg = config(n, *extra)
         env = make_env(cfg, num_envs=n)
-        col, upd, _ = collect_and_update(cfg, env, 2 + 1)
+        col, (upd,), _ = collect_and_update(cfg, env, 2 + 1,
+                                            (str(cfg.algo.update_precision.value),))
         env.close()
         var_rows.append({"variant": name, "collection": col, "update": upd,
                          "loop_estimate": 1 / (1 / col + 1 / upd)})
@@ -145,12 +157,16 @@ def main() -> None:  # noqa: PLR0915 - one measurement table after another
          "torch_threads": 1, "cpus": os.cpu_count(), "note": args.note}, indent=2))
     lines = ["# Oracle training loop vs its env (frames/s, one run, 1 torch thread, "
              f"{os.cpu_count()} CPUs)", "", *([args.note, ""] if args.note else []),
-             "| N | bare env | collection | update | loop | loop / bare | loop, overlap | "
-             "overlap / bare | update share |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "fast = `algo.update_precision=bfloat16 collector.overlap=true`; "
+             "fast, 1 thread: the same with `sim.threads=1`.", "",
+             "| N | bare env | collection | update | update bf16 | loop | loop / bare | "
+             "fast | fast / bare | fast, 1 thread | ... / bare | update share |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     lines += [f"| {r['N']} | {r['bare']:.0f} | {r['collection']:.0f} | {r['update']:.0f} | "
-              f"{r['loop']:.0f} | {r['loop_over_bare']:.2f} | {r['loop_overlap']:.0f} | "
-              f"{r['overlap_over_bare']:.2f} | {r['update_share']:.0%} |" for r in rows]
+              f"{r['update_bf16']:.0f} | {r['loop']:.0f} | {r['loop_over_bare']:.2f} | "
+              f"{r['loop_fast']:.0f} | {r['fast_over_bare']:.2f} | "
+              f"{r['loop_fast_1thread']:.0f} | {r['fast_1thread_over_bare']:.2f} | "
+              f"{r['update_share']:.0%} |" for r in rows]
     lines += ["", f"Update variants at N = {n} (epochs x minibatches; the loop estimate is "
               "collection and update in series)", "",
               "| variant | collection | update | loop estimate |", "|---|---|---|---|"]
