@@ -210,3 +210,18 @@ def test_update_precision_names_its_choices() -> None:
         compose_config(*TINY, "algo.update_precision=float16")
     cause = str(err.value.__cause__)
     assert "update_precision" in cause and "float32, bfloat16" in cause
+
+
+def test_a_lagged_batch_is_clipped_against_the_current_policy() -> None:
+    # collector.overlap acts with the weights of an earlier update. Against those, the KL
+    # already counts the previous step (the adaptive lr then shrinks); lagged=True makes the
+    # weights the update starts from the reference: KL 0 and no clipping at lr 0.
+    cfg, _, loss, data = _fixed_batch()
+    algo = cfg.algo.copy()
+    algo.desired_kl, algo.epochs, algo.minibatches = 0.0, 1, 1
+    ppo_update(loss, torch.optim.Adam(loss.parameters(), lr=1e-2), data, algo, exact_kl=True)
+    still = torch.optim.Adam(loss.parameters(), lr=0.0)
+    stale = ppo_update(loss, still, data.clone(), algo, exact_kl=True)
+    fresh = ppo_update(loss, still, data.clone(), algo, exact_kl=True, lagged=True)
+    assert stale["kl_exact"] > 1e-4
+    assert fresh["kl_exact"] == pytest.approx(0.0, abs=1e-7)

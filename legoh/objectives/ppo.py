@@ -21,7 +21,7 @@ from torchrl.objectives import ClipPPOLoss
 from torchrl.objectives.value import GAE
 
 from legoh.config.algo import OracleConfig
-from legoh.modules.actor_critic import LOC, SCALE
+from legoh.modules.actor_critic import LOC, LOG_PROB, SCALE
 
 LR_BOUNDS = (1e-5, 1e-2)  # rsl_rl's clamp for the adaptive learning rate
 
@@ -67,16 +67,39 @@ def gaussian_kl(loc0: torch.Tensor, scale0: torch.Tensor, loc1: torch.Tensor,
     return kl.sum(-1).mean()
 
 
+def use_current_policy_as_reference(loss: ClipPPOLoss, data: TensorDictBase) -> None:
+    """Re-evaluate the batch's actions under the weights this update starts from.
+
+    With ``collector.overlap`` a batch is acted with the weights of the update before the
+    last one. Clipping and the KL against that acting policy count the previous update's
+    step too: the adaptive learning rate then halves each step, and the 3.2M-frame run that
+    did so learned slower per frame than the in-process loop (docs/oracle.md). So the
+    current policy becomes the reference, as decoupled PPO's proximal policy (Hilton et al.,
+    2021); the behaviour-to-proximal weight it would add, within a few % at a lag of one
+    update, is left out.
+    """
+    with torch.no_grad():
+        dist = loss.actor_network.get_dist(data.select(*loss.actor_network.in_keys).clone())
+        data.set(LOG_PROB, dist.log_prob(data["action"]))
+        data.set(LOC, dist.base_dist.loc)
+        data.set(SCALE, dist.base_dist.scale)
+
+
 def ppo_update(loss: ClipPPOLoss, optimizer: torch.optim.Optimizer, data: TensorDictBase,
                cfg: OracleConfig, generator: torch.Generator | None = None,
-               scale: float = 1.0, exact_kl: bool = False) -> dict[str, float]:
+               scale: float = 1.0, exact_kl: bool = False, lagged: bool = False
+               ) -> dict[str, float]:
     """Epochs of minibatch updates on a flat batch that already holds GAE advantages.
 
     ``scale`` multiplies the summed loss (the unified stage's w1); logged values are unscaled.
     ``exact_kl`` (the acting policy's ``("hidden","action_loc"/"action_scale")`` stored in
     ``data`` by the collector): the learning rate follows the exact KL between the acting
-    and the current policy; else torchrl's sampled ``kl_approx``.
+    and the current policy; else torchrl's sampled ``kl_approx``. ``lagged``: the batch was
+    acted with the weights of an earlier update (``collector.overlap``); see
+    :func:`use_current_policy_as_reference`.
     """
+    if lagged:
+        use_current_policy_as_reference(loss, data)
     sums: dict[str, float] = defaultdict(float)
     count = 0
     size = data.shape[0] // cfg.minibatches

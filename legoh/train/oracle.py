@@ -88,7 +88,8 @@ def _train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None,
     def update(batch) -> dict:
         with torch.no_grad():
             gae(batch)
-        stats = ppo_update(loss, optimizer, batch.reshape(-1), algo, gen, exact_kl=True)
+        stats = ppo_update(loss, optimizer, batch.reshape(-1), algo, gen, exact_kl=True,
+                           lagged=bool(cfg.collector.overlap))
         adapt = adaptation_loss(adaptation, actor, batch.reshape(-1), gen)
         adapt_optim.zero_grad()
         adapt.backward()

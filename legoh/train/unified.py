@@ -307,7 +307,7 @@ def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None,
             with torch.no_grad():
                 gae(batch)
             stats.update(ppo_update(loss, ppo_optim, batch.reshape(-1), algo, gen,
-                                    scale=algo.weights.w1))
+                                    scale=algo.weights.w1, lagged=bool(cfg.collector.overlap)))
         clock["ppo"] = time.perf_counter()
         stats.update(distill(student, batch, cfg, distill_optim, prior_loss, gen))
         clock["distill"] = time.perf_counter()
