@@ -186,7 +186,7 @@ def restore_training(state: dict, models: dict, optims: dict, env) -> int:
         module.load_state_dict(state["models"][name])
     for name, opt in optims.items():
         opt.load_state_dict(state["optimizers"][name])
-    env.level[:] = np.asarray(state["curriculum"]["level"])
+    env.level[:] = torch.as_tensor(state["curriculum"]["level"])
     env.global_steps = int(state["curriculum"]["global_steps"])
     restore_rng(state["rng"])
     return int(state["iteration"])
