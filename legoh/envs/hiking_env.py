@@ -97,8 +97,7 @@ class HikingEnv(EnvBase):
 
         joints = list(r.actuated_joints)
         self.hip_idx = t([joints.index(j) for j in robot.hip_joints], torch.int64)
-        self.qpos_adr = t(self.scene.qpos_adr, torch.int64)
-        self.dof_adr = t(self.scene.dof_adr, torch.int64)
+        self.qpos_adr, self.dof_adr = _index(self.scene.qpos_adr), _index(self.scene.dof_adr)
         self.default_pose, self.joint_range = t(r.default_pose), t(r.joint_range)
         self.action_scale = t(r.action_scale)
         self.qpos0 = t(self.scene.model.qpos0)
@@ -107,8 +106,9 @@ class HikingEnv(EnvBase):
         self.trails_t = self.trails.to(dev, dt)
         self.ground = Grid(tm.heights, tm.origin, tm.resolution, dev, dt)
         self.scan_grid = Grid(self.scene.scan_heights, tm.origin, tm.resolution, dev, dt)
-        self.edges = Grid(tm.edge_mask, tm.origin, tm.resolution, dev, torch.bool)
-        self.scan_xy = observations.scan_points(dev, dt)
+        self.edges = Grid(tm.edge_mask, tm.origin, tm.resolution, dev, dt, torch.bool)
+        self.scan_rotor = observations.scan_rotor(observations.scan_points(dev, dt)
+                                                  / self.scan_grid.res)
         self.goal_offsets = torch.arange(observations.NUM_EXPERT_GOALS, device=dev)
         self.physics_features = t(self.physics.as_features(), torch.float32)
         self.category_onehot = torch.eye(self.num_categories, device=dev)
@@ -265,17 +265,23 @@ class HikingEnv(EnvBase):
             out[key] = (value if isinstance(value, TensorDictBase)
                         else value.to(torch.float32 if value.is_floating_point()
                                       else value.dtype, copy=True))
-        for name, flag in flags.items():
-            out[(keys.INFO, name)] = flag.clone()
-        td = TensorDict({}, batch_size=[self.num_envs], device=self.device)
-        for key, value in out.items():
-            td.set(key, value)
-        return td
+        nested: dict[str, dict] = {}
+        for (group, name), value in out.items():
+            nested.setdefault(group, {})[name] = value
+        nested[keys.INFO].update({name: flag.clone() for name, flag in flags.items()})
+        return TensorDict(nested, batch_size=[self.num_envs], device=self.device)
 
     def close(self, **kwargs) -> None:
         """Stop the physics."""
         self.sim.close()
         super().close(**kwargs)
+
+
+def _index(adr: np.ndarray) -> slice | torch.Tensor:
+    """Addresses as a slice where they are consecutive (a view, no gather), else a tensor."""
+    if len(adr) and (np.diff(adr) == 1).all():
+        return slice(int(adr[0]), int(adr[-1]) + 1)
+    return torch.as_tensor(adr, dtype=torch.int64)
 
 
 def make_env(cfg, num_envs: int | None = None, evaluation: bool = False, **overrides

@@ -33,6 +33,13 @@ def scan_points(device: torch.device, dtype: torch.dtype) -> torch.Tensor:
     return torch.stack(torch.meshgrid(x, y, indexing="ij"), -1).reshape(-1, 2)
 
 
+def scan_rotor(points: torch.Tensor) -> torch.Tensor:
+    """(2, 2K) matrix M with (cos yaw, sin yaw) @ M = the K points (K, 2) rotated by yaw,
+    flattened: one matrix product turns every env's heading into its scan offsets."""
+    px, py = points[:, 0], points[:, 1]
+    return torch.stack([torch.stack([px, py], 1), torch.stack([-py, px], 1)]).reshape(2, -1)
+
+
 # ------------------------------------------------------------------ proprioception
 def base_ang_vel(env) -> torch.Tensor:
     return env.state.ang_vel_body * ANG_VEL_SCALE
@@ -99,12 +106,10 @@ class ProprioHistory:
 # ------------------------------------------------------------------ exteroception, goals
 def scandots(env, obs: dict) -> torch.Tensor:
     """clip(base z - nominal base height - ground, +-1 m) at the scan points, yaw frame."""
-    s = env.state
-    c, sn = torch.cos(s.yaw)[:, None], torch.sin(s.yaw)[:, None]
-    px, py = env.scan_xy[:, 0], env.scan_xy[:, 1]
-    world = torch.stack([s.base_pos[:, 0:1] + c * px - sn * py,
-                         s.base_pos[:, 1:2] + sn * px + c * py], -1)
-    heights = env.scan_grid.bilinear(world)
+    s, grid = env.state, env.scan_grid
+    heading = torch.stack([torch.cos(s.yaw), torch.sin(s.yaw)], 1)  # (N, 2)
+    offsets = (heading @ env.scan_rotor).reshape(s.num_envs, -1, 2)  # R(yaw) p, cells
+    heights = grid.bilinear_cells(grid.cells(s.base_xy)[:, None] + offsets)
     return torch.clamp(s.base_pos[:, 2:3] - env.robot.nominal_base_height - heights, -1.0, 1.0)
 
 

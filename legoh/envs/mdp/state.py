@@ -76,31 +76,42 @@ class Grid:
     nearest-cell lookups at world points (..., 2), clamped at the edges."""
 
     def __init__(self, values: np.ndarray, origin: np.ndarray, res: float,
-                 device: torch.device, dtype: torch.dtype | None = None) -> None:
+                 device: torch.device, dtype: torch.dtype,
+                 value_dtype: torch.dtype | None = None) -> None:
+        """``dtype``: of the query points (the physics'); ``value_dtype``: of the values
+        (default ``dtype``)."""
         self.nx, self.ny = values.shape
-        self.values = torch.as_tensor(values, device=device).to(dtype or torch.float64)
-        self.flat = self.values.reshape(-1)
-        self.origin = torch.as_tensor(origin, dtype=torch.float64, device=device)
+        self.flat = torch.as_tensor(values, device=device).to(value_dtype or dtype).reshape(-1)
+        self.origin = torch.as_tensor(origin, dtype=dtype, device=device)
         self.res = float(res)
+        self._top = torch.tensor([self.nx - 1.000001, self.ny - 1.000001], device=device,
+                                 dtype=dtype)
+
+    def cells(self, xy: torch.Tensor) -> torch.Tensor:
+        """World points (..., 2) in (fractional) cell units."""
+        return (xy - self.origin) / self.res
 
     def bilinear(self, xy: torch.Tensor) -> torch.Tensor:
         """Interpolated values (...) at world points ``xy`` (..., 2)."""
-        uv = (xy - self.origin.to(xy.dtype)) / self.res
-        u = torch.clamp(uv[..., 0], 0.0, self.nx - 1.000001)
-        v = torch.clamp(uv[..., 1], 0.0, self.ny - 1.000001)
-        i, j = u.long(), v.long()
-        fu, fv = u - i, v - j
-        k = i * self.ny + j
-        g = self.flat
-        return ((1 - fu) * (1 - fv) * g[k] + fu * (1 - fv) * g[k + self.ny]
-                + (1 - fu) * fv * g[k + 1] + fu * fv * g[k + self.ny + 1])
+        return self.bilinear_cells(self.cells(xy))
+
+    def bilinear_cells(self, uv: torch.Tensor) -> torch.Tensor:
+        """Interpolated values (...) at points ``uv`` (..., 2) in cell units."""
+        uv = torch.minimum(torch.clamp(uv, min=0.0), self._top)
+        ij = uv.long()
+        fu, fv = (uv - ij).unbind(-1)
+        k = ij[..., 0] * self.ny + ij[..., 1]
+        g00, g10 = torch.take(self.flat, k), torch.take(self.flat, k + self.ny)
+        g01, g11 = torch.take(self.flat, k + 1), torch.take(self.flat, k + self.ny + 1)
+        low, high = g00 + fu * (g10 - g00), g01 + fu * (g11 - g01)
+        return low + fv * (high - low)
 
     def nearest(self, xy: torch.Tensor) -> torch.Tensor:
         """Value (...) of the cell nearest each world point ``xy`` (..., 2)."""
-        ij = torch.round((xy - self.origin.to(xy.dtype)) / self.res).long()
+        ij = torch.round((xy - self.origin) / self.res).long()
         i = torch.clamp(ij[..., 0], 0, self.nx - 1)
         j = torch.clamp(ij[..., 1], 0, self.ny - 1)
-        return self.flat[i * self.ny + j]
+        return torch.take(self.flat, i * self.ny + j)
 
 
 @dataclass(frozen=True)
