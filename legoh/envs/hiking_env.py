@@ -15,7 +15,6 @@ one ``StepState`` per step (``mdp.state``), then the term tables of ``mdp.events
 
 from __future__ import annotations
 
-import mujoco
 import numpy as np
 import torch
 from tensordict import TensorDict, TensorDictBase
@@ -24,13 +23,12 @@ from torchrl.envs import EnvBase
 
 from legoh import keys
 from legoh.config import EnvConfig, RobotConfig, SimConfig, TrailConfig
-from legoh.config.env import REWARD_PRESETS
 from legoh.envs.mdp import events, observations, rewards
-from legoh.envs.mdp.state import AirTime, Goals, Grid, Memory, TrailTable, compute_state
+from legoh.envs.mdp.state import AirTime, Goals, Grid, Memory, TrailTable, as_index, compute_state
 from legoh.envs.mdp.terminations import TERMINATIONS
 from legoh.envs.physics import DEFAULT_DEVICE, make_physics
 from legoh.envs.randomization import draw_physics
-from legoh.envs.scene import Scene, build_scene
+from legoh.envs.scene import Scene, build_scene, feet_rest_height
 from legoh.envs.terrain import build_terrain_map
 
 EVAL_REACH_RADIUS = 0.89  # m: the benchmark's terminus radius (training: env.reach_radius)
@@ -66,15 +64,8 @@ class HikingEnv(EnvBase):
         self.num_categories = len(self.terrain.categories)
         self.reach_radius = EVAL_REACH_RADIUS if evaluation else env.reach_radius
         self.gen = torch.Generator(device=self.device).manual_seed(seed)
-        self.reward_terms = rewards.active_terms(
-            rewards.preset_weights(env.reward_preset, dict(env.rewards),
-                                   dict(robot.table6_weights)),
-            rewards.term_params(env, self.robot.nominal_base_height, self.reach_radius))
-        _, clip_total, penalty = REWARD_PRESETS[env.reward_preset]
-        self.only_positive = clip_total if env.only_positive_rewards is None else bool(
-            env.only_positive_rewards)
-        self.termination_penalty = penalty if env.termination_penalty is None else float(
-            env.termination_penalty)
+        self.reward_terms, self.only_positive, self.termination_penalty = (
+            rewards.reward_table(env, robot, self.robot.nominal_base_height, self.reach_radius))
         self.depth_cam = (self.sim.make_depth_camera(robot.camera.fovy_deg, env.depth.width,
                                                      env.depth.height, env.depth.far)
                           if env.depth.enabled else None)
@@ -97,11 +88,11 @@ class HikingEnv(EnvBase):
 
         joints = list(r.actuated_joints)
         self.hip_idx = t([joints.index(j) for j in robot.hip_joints], torch.int64)
-        self.qpos_adr, self.dof_adr = _index(self.scene.qpos_adr), _index(self.scene.dof_adr)
+        self.qpos_adr, self.dof_adr = as_index(self.scene.qpos_adr), as_index(self.scene.dof_adr)
         self.default_pose, self.joint_range = t(r.default_pose), t(r.joint_range)
         self.action_scale = t(r.action_scale)
         self.qpos0 = t(self.scene.model.qpos0)
-        self.feet_rest_height = t(self._feet_rest_height())
+        self.feet_rest_height = t(feet_rest_height(self.scene))
         self.trails = TrailTable.from_map(tm)  # numpy, for callers; trails_t on the device
         self.trails_t = self.trails.to(dev, dt)
         self.ground = Grid(tm.heights, tm.origin, tm.resolution, dev, dt)
@@ -138,17 +129,6 @@ class HikingEnv(EnvBase):
         self.observation_terms = observations.observation_table(self)
         self.reward_parts = {k: torch.zeros(n, device=dev) for k in self.reward_terms}
 
-    def _feet_rest_height(self) -> np.ndarray:
-        """(F,) height of each foot body's origin above flat ground in the default pose: the
-        zero of the swing-height term's foot lift."""
-        model, d = self.scene.model, mujoco.MjData(self.scene.model)
-        d.qpos[:] = model.qpos0
-        d.qpos[0:3] = [0.0, 0.0, self.scene.stand_height]
-        d.qpos[3:7] = [1.0, 0.0, 0.0, 0.0]
-        d.qpos[self.scene.qpos_adr] = self.robot.default_pose
-        mujoco.mj_kinematics(model, d)
-        return d.xpos[[model.body(b).id for b in self.robot.feet_bodies], 2].copy()
-
     def _make_specs(self) -> None:
         """Specs from what the tables produce (one dry observation of the initial state)."""
         n, f32, none = self.num_envs, torch.float32, self._diverged
@@ -156,17 +136,7 @@ class HikingEnv(EnvBase):
         self.state = compute_state(self)
         sample = self._observe({"reached": none, "fell": none, "diverged": none})
         self.history.buf = history
-
-        def spec(key: tuple[str, ...], x: torch.Tensor | TensorDict):
-            if isinstance(x, TensorDictBase):
-                return Composite({k: spec((*key, k), v) for k, v in x.items()}, shape=(n,))
-            if x.dtype == torch.bool:
-                return Categorical(2, shape=x.shape, dtype=torch.bool, device=self.device)
-            if key == keys.DEPTH:
-                return Bounded(-0.5, 0.5, shape=x.shape, dtype=f32, device=self.device)
-            return Unbounded(shape=x.shape, dtype=x.dtype, device=self.device)
-
-        self.observation_spec = spec((), sample)
+        self.observation_spec = observations.spec_of(sample)
         clip = self.cfg.action_clip
         self.action_spec = Bounded(-clip, clip, shape=(n, self.num_actions), dtype=f32,
                                    device=self.device)
@@ -275,13 +245,6 @@ class HikingEnv(EnvBase):
         """Stop the physics."""
         self.sim.close()
         super().close(**kwargs)
-
-
-def _index(adr: np.ndarray) -> slice | torch.Tensor:
-    """Addresses as a slice where they are consecutive (a view, no gather), else a tensor."""
-    if len(adr) and (np.diff(adr) == 1).all():
-        return slice(int(adr[0]), int(adr[-1]) + 1)
-    return torch.as_tensor(adr, dtype=torch.int64)
 
 
 def make_env(cfg, num_envs: int | None = None, evaluation: bool = False, **overrides

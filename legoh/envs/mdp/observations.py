@@ -11,7 +11,8 @@ import math
 from collections.abc import Callable
 
 import torch
-from tensordict import TensorDict
+from tensordict import TensorDict, TensorDictBase
+from torchrl.data import Bounded, Categorical, Composite, Unbounded
 
 from legoh import keys
 from legoh.envs import math3d
@@ -207,3 +208,18 @@ def observation_table(env) -> dict[tuple[str, str], ObsFn]:
     table[keys.EXPERT_GOALS] = expert_goals
     table.update(info_terms())
     return table
+
+
+def spec_of(sample: TensorDictBase, key: tuple[str, ...] = ()) -> Composite:
+    """The spec of one observation the table produced: booleans are flags, depth frames
+    are bounded to [-0.5, 0.5], everything else is unbounded of its dtype."""
+    def leaf(k: tuple[str, ...], x: torch.Tensor):
+        if x.dtype == torch.bool:
+            return Categorical(2, shape=x.shape, dtype=torch.bool, device=x.device)
+        if k == keys.DEPTH:
+            return Bounded(-0.5, 0.5, shape=x.shape, dtype=x.dtype, device=x.device)
+        return Unbounded(shape=x.shape, dtype=x.dtype, device=x.device)
+
+    return Composite({k: spec_of(v, (*key, k)) if isinstance(v, TensorDictBase)
+                      else leaf((*key, k), v) for k, v in sample.items()},
+                     shape=sample.batch_size, device=sample.device)

@@ -21,7 +21,6 @@ import torch
 
 from legoh.envs.mdp.state import StepState
 
-
 RewardFn = Callable[..., torch.Tensor]  # fn(state, **params) -> (N,)
 REWARD_TERMS: dict[str, RewardFn] = {}
 
@@ -250,6 +249,21 @@ def active_terms(weights: dict[str, float], params: dict[str, dict] | None = Non
     params = params or {}
     return {name: RewardTerm(REWARD_TERMS[name], w, params.get(name, {}))
             for name, w in weights.items() if w != 0.0}
+
+
+def reward_table(cfg, robot_cfg, target_height: float, reach_radius: float
+                 ) -> tuple[dict[str, RewardTerm], bool, float]:
+    """The env's reward table (``cfg``: EnvConfig, ``robot_cfg``: RobotConfig), whether the
+    step's total is clipped at 0, and the termination penalty per fall (x dt)."""
+    from legoh.config.env import REWARD_PRESETS
+
+    weights = preset_weights(cfg.reward_preset, dict(cfg.rewards),
+                             dict(robot_cfg.table6_weights))
+    table = active_terms(weights, term_params(cfg, target_height, reach_radius))
+    _, clip_total, penalty = REWARD_PRESETS[cfg.reward_preset]
+    clip = clip_total if cfg.only_positive_rewards is None else bool(cfg.only_positive_rewards)
+    penalty = penalty if cfg.termination_penalty is None else float(cfg.termination_penalty)
+    return table, clip, penalty
 
 
 def compute_rewards(state: StepState, terms: dict[str, RewardTerm]

@@ -164,6 +164,13 @@ class TrailTable:
         return TrailTable(**{f.name: conv(getattr(self, f.name)) for f in fields(self)})
 
 
+def as_index(adr: np.ndarray) -> slice | torch.Tensor:
+    """Addresses as a slice where they are consecutive (a view, no gather), else a tensor."""
+    if len(adr) and (np.diff(adr) == 1).all():
+        return slice(int(adr[0]), int(adr[-1]) + 1)
+    return torch.as_tensor(adr, dtype=torch.int64)
+
+
 # ------------------------------------------------------------------ stateful bookkeeping
 class AirTime:
     """Seconds each foot has been off the ground (N, F)."""
