@@ -155,7 +155,7 @@ class EnvConfig:
     # reward preset (REWARD_PRESETS): walk (default) | table6 (appendix Table 6 as written)
     reward_preset: str = "walk"
     # weight per term over the preset's; None keeps the preset's (a term of your own:
-    # +env.rewards.my_term=1.0 after registering it with legoh.envs.rewards.reward_term)
+    # +env.rewards.my_term=1.0 after registering it with legoh.envs.mdp.rewards.reward_term)
     rewards: dict[str, float | None] = field(default_factory=lambda: dict.fromkeys(
         sorted(set(table6_weights()) | set(walk_weights()))))
     # None: the preset's. True clips the step's total at 0 (legged_gym's only_positive_rewards)
