@@ -103,8 +103,7 @@ class Grid:
         k = ij[..., 0] * self.ny + ij[..., 1]
         g00, g10 = torch.take(self.flat, k), torch.take(self.flat, k + self.ny)
         g01, g11 = torch.take(self.flat, k + 1), torch.take(self.flat, k + self.ny + 1)
-        low, high = g00 + fu * (g10 - g00), g01 + fu * (g11 - g01)
-        return low + fv * (high - low)
+        return torch.lerp(torch.lerp(g00, g10, fu), torch.lerp(g01, g11, fu), fv)
 
     def nearest(self, xy: torch.Tensor) -> torch.Tensor:
         """Value (...) of the cell nearest each world point ``xy`` (..., 2)."""
