@@ -83,7 +83,7 @@ def ceiling_rate(env, steps: int) -> float:
     pool = rollout.Rollout(nthread=sim.threads)
     datas = [mujoco.MjData(env.scene.model) for _ in range(sim.threads)]
     state0 = sim.state.copy()
-    control = np.tile(env.ctrl[:, None], (1, sim.substeps, 1))
+    control = np.tile(env.ctrl.cpu().numpy()[:, None], (1, sim.substeps, 1))
     out = np.zeros((n, sim.substeps, state0.shape[1]))
     sens = np.zeros((n, sim.substeps, env.scene.model.nsensordata))
     state = state0.copy()
@@ -100,10 +100,10 @@ def ceiling_rate(env, steps: int) -> float:
 def depth_cost(env, frames: int, egl_frames: int = 4) -> dict[str, float]:
     """Seconds per depth frame per env: ray casting (the env's) vs the EGL renderer."""
     n = env.num_envs
-    ids = np.arange(n)
+    ids = torch.arange(n)
     t0 = time.perf_counter()
     for _ in range(frames):
-        env._render_depth(ids)
+        env.depth.render(env, ids)
     ray = (time.perf_counter() - t0) / (frames * n)
 
     model = env.scene.model
@@ -120,7 +120,7 @@ def depth_cost(env, frames: int, egl_frames: int = 4) -> dict[str, float]:
                 raise RuntimeError("not asked for")
             t0 = time.perf_counter()
             for i in range(count):
-                data.qpos[:] = env.sim.qpos[i]
+                data.qpos[:] = env.sim.qpos[i].cpu().numpy()
                 mujoco.mj_kinematics(model, data)
                 mujoco.mj_camlight(model, data)
                 renderer.update_scene(data, camera=CAMERA_NAME)

@@ -145,7 +145,7 @@ def render_policy_video(cfg: DictConfig, actor, out_path: str | Path,
         camera = FollowCamera(env.scene.model, env.robot.base_body,
                               float(env.trails.start_yaw[tile[0]]),
                               env.robot.nominal_base_height)
-        frames = [camera.frame(env.sim.qpos[0])]
+        frames = [camera.frame(env.sim.qpos[0].cpu().numpy())]
         with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC), \
                 torch_threads(1):
             for step in range(env.max_steps):
@@ -156,7 +156,7 @@ def render_policy_video(cfg: DictConfig, actor, out_path: str | Path,
                 end[done] = pos[done]
                 fell[done] = (nxt[keys.FELL].numpy() & ~nxt[keys.REACHED].numpy())[done]
                 if not ended[0] and ((step + 1) % RENDER_EVERY == 0 or done[0]):
-                    frames.append(camera.frame(env.sim.qpos[0]))
+                    frames.append(camera.frame(env.sim.qpos[0].cpu().numpy()))
                 ended |= done
                 if ended.all():
                     break

@@ -131,15 +131,15 @@ def test_partial_reset_touches_only_masked_envs(make: EnvFactory) -> None:
     for _ in range(15):
         td = zero_step(env, td)
     held = td.clone()
-    qpos = env.sim.qpos.copy()
+    qpos = env.sim.qpos.clone()
     mask = torch.tensor([True, False, True, False])
-    keep = ~mask.numpy()
+    keep = ~mask
     out = env.reset(td.clone().set("_reset", mask[:, None]))
 
     assert torch.equal(td["obs", "proprio_history"], held["obs", "proprio_history"]), (
         "a reset changed tensors returned earlier")
-    np.testing.assert_array_equal(env.sim.qpos[keep], qpos[keep])
-    assert not np.allclose(env.sim.qpos[~keep, :2], qpos[~keep, :2])
+    assert torch.equal(env.sim.qpos[keep], qpos[keep])
+    assert not torch.allclose(env.sim.qpos[~keep, :2], qpos[~keep, :2])
     np.testing.assert_array_equal(env.steps, [0, 15, 0, 15])
     for key in out["obs"].keys():
         assert torch.equal(out["obs", key][keep], held["obs", key][keep]), key
@@ -160,7 +160,7 @@ def test_tipped_robot_falls(make: EnvFactory, axis: int) -> None:
     td = env.reset()
     tilt = np.zeros(4)
     tilt[0], tilt[axis] = np.cos(np.pi / 4), np.sin(np.pi / 4)  # 90 degrees
-    env.sim.qpos[0, 3:7] = tilt
+    env.sim.qpos[0, 3:7] = torch.as_tensor(tilt)
     out = zero_step(env, td)
     assert flags(out, keys.FELL) == [True, False]
     assert flags(out, keys.TERMINATED) == [True, False]
@@ -173,7 +173,7 @@ def test_reward_clipped_at_zero_and_a_fall_costs_the_termination_penalty(
     env = make(2, reward_preset="table6")  # the preset that clips
     td = env.reset()
     tilt = np.array([np.cos(np.pi / 4), np.sin(np.pi / 4), 0.0, 0.0])
-    env.sim.qpos[0, 3:7] = tilt
+    env.sim.qpos[0, 3:7] = torch.as_tensor(tilt)
     reward = zero_step(env, td)[keys.REWARD][:, 0]
     penalty = env.termination_penalty * env.dt
     assert penalty < 0
@@ -184,7 +184,7 @@ def test_reward_clipped_at_zero_and_a_fall_costs_the_termination_penalty(
 def test_robot_at_terminus_reaches(make: EnvFactory) -> None:
     env = make(2)
     td = env.reset()
-    env.sim.qpos[1, 0:2] = env.trails.terminus[env.tile[1]]
+    env.sim.qpos[1, 0:2] = torch.as_tensor(env.trails.terminus[int(env.goals.tile[1])])
     out = zero_step(env, td)
     assert flags(out, keys.REACHED) == [False, True]
     assert flags(out, keys.FELL) == [False, False]
@@ -227,8 +227,8 @@ def test_diverged_env_is_reset_and_truncated(make: EnvFactory, bad_qvel: float,
     assert flags(out, keys.TRUNCATED) == [False, True, False]
     assert flags(out, keys.TERMINATED) == [False, False, False]
     np.testing.assert_array_equal(env.steps, [4, 0, 4])
-    start = env.trails.start[env.tile[1], :2]
-    assert np.abs(env.sim.qpos[1, :2] - start).max() <= env.cfg.spawn_noise + 1e-9
+    start = env.trails.start[int(env.goals.tile[1]), :2]
+    assert np.abs(env.sim.qpos[1, :2].numpy() - start).max() <= env.cfg.spawn_noise + 1e-9
     for _ in range(3):
         out = zero_step(env, out)
         for key in out["obs"].keys():
@@ -292,8 +292,9 @@ def test_depth_sees_box_ahead(make: EnvFactory) -> None:
 def levels_after(levels: list[int], covered: list[float], reached: list[bool],
                  num_levels: int = 5, seed: int = 0) -> np.ndarray:
     n = len(levels)
-    return update_levels(np.array(levels), np.array(covered, dtype=float), np.full(n, 100.0),
-                         np.array(reached), num_levels, np.random.default_rng(seed))
+    return update_levels(torch.tensor(levels), torch.tensor(covered, dtype=torch.float64),
+                         torch.full((n,), 100.0), torch.tensor(reached), num_levels,
+                         torch.Generator().manual_seed(seed)).numpy()
 
 
 def test_curriculum_up_down_stay() -> None:
@@ -316,8 +317,8 @@ def test_curriculum_past_top_goes_to_random_level() -> None:
 
 
 def test_curriculum_zero_expected_distance() -> None:
-    new = update_levels(np.array([1]), np.array([0.0]), np.array([0.0]), np.array([False]),
-                        5, np.random.default_rng(0))
+    new = update_levels(torch.tensor([1]), torch.tensor([0.0]), torch.tensor([0.0]),
+                        torch.tensor([False]), 5, torch.Generator().manual_seed(0))
     np.testing.assert_array_equal(new, [0])
 
 

@@ -1,4 +1,4 @@
-"""Reward terms of ``legoh.envs.rewards``: sign and magnitude of each, worked by hand.
+"""Reward terms of ``legoh.envs.mdp.rewards``: sign and magnitude of each, worked by hand.
 
 Every case starts from a neutral two-env ``StepState`` (upright, standing still at the target
 height in the default pose, facing a waypoint 2 m ahead along +x) and changes the fields the
@@ -9,37 +9,53 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+import torch
 
-from legoh.config.env import table6_weights, walk_weights
-from legoh.envs.rewards import REWARD_TERMS, StepState, active_terms, compute_rewards
+from legoh.config.env import EnvConfig, table6_weights, walk_weights
+from legoh.envs.mdp.rewards import REWARD_TERMS, active_terms, compute_rewards, term_params
+from legoh.envs.mdp.state import StepState
 
 N, J, F = 2, 4, 2  # envs, joints, feet
 DT = 0.02  # s
-GOAL_SPEED = 0.8  # m/s
+GOAL_SPEED = 0.8  # m/s (the EnvConfig default, as are the other term parameters)
 TARGET_HEIGHT = 0.96  # m
+PARAMS = term_params(EnvConfig(), target_height=TARGET_HEIGHT, reach_radius=0.5)
 
 
 def neutral(**changes: object) -> StepState:
-    """A StepState of N envs in which every penalty is 0; ``changes`` replace fields."""
-    zeros = np.zeros
+    """A StepState of N envs in which every penalty is 0; ``changes`` (numpy or torch)
+    replace fields."""
+    def zeros(*shape: int, dtype: torch.dtype = torch.float64) -> torch.Tensor:
+        return torch.zeros(*shape, dtype=dtype)
+
+    def tile(row: list[float], k: int) -> torch.Tensor:
+        return torch.tensor(row, dtype=torch.float64).expand(k, -1).clone()
+
     state = StepState(
-        dt=DT, lin_vel_body=zeros((N, 3)), ang_vel_body=zeros((N, 3)),
-        gravity_body=np.tile([0.0, 0.0, -1.0], (N, 1)), lin_vel_world=zeros((N, 3)),
-        base_xy=zeros((N, 2)), yaw=zeros(N), base_height=np.full(N, TARGET_HEIGHT),
-        target_height=TARGET_HEIGHT, dof_pos=zeros((N, J)), dof_vel=zeros((N, J)),
-        last_dof_vel=zeros((N, J)), default_pose=zeros(J),
-        joint_range=np.tile([-1.0, 1.0], (J, 1)), hip_idx=np.array([0, 1]),
-        torques=zeros((N, J)), last_torques=zeros((N, J)), action=zeros((N, J)),
-        last_action=zeros((N, J)), waypoint_xy=np.tile([2.0, 0.0], (N, 1)),
-        terminus_xy=np.tile([20.0, 0.0], (N, 1)), goal_speed=GOAL_SPEED, reach_radius=0.5,
-        feet_force=zeros((N, F, 3)), feet_contact=np.ones((N, F), dtype=bool),
-        first_contact=zeros((N, F), dtype=bool), air_time=zeros((N, F)),
-        air_time_target=0.5, feet_on_edge=zeros((N, F), dtype=bool),
-        unsafe_contacts=zeros(N, dtype=np.int64), level=zeros(N, dtype=np.int64),
-        command=zeros((N, 2)), tracking_sigma=0.25, stance=np.ones((N, F), dtype=bool),
-        feet_height=zeros((N, F)), swing_height=0.08, swing_target=zeros((N, F)),
+        dt=DT, base_pos=tile([0.0, 0.0, TARGET_HEIGHT], N), base_quat=tile([1.0, 0, 0, 0], N),
+        roll=zeros(N), pitch=zeros(N), yaw=zeros(N), lin_vel_body=zeros(N, 3),
+        ang_vel_body=zeros(N, 3), gravity_body=tile([0.0, 0.0, -1.0], N),
+        lin_vel_world=zeros(N, 3), base_xy=zeros(N, 2),
+        base_height=torch.full((N,), TARGET_HEIGHT, dtype=torch.float64),
+        dof_pos=zeros(N, J), dof_vel=zeros(N, J), last_dof_vel=zeros(N, J),
+        default_pose=zeros(J), joint_range=tile([-1.0, 1.0], J),
+        hip_idx=torch.tensor([0, 1]), torques=zeros(N, J), last_torques=zeros(N, J),
+        action=zeros(N, J), last_action=zeros(N, J), waypoint_xy=tile([2.0, 0.0], N),
+        terminus_xy=tile([20.0, 0.0], N), terminus_local=tile([20.0, 0.0], N),
+        middle_local=tile([10.0, 0.0], N), feet_force=zeros(N, F, 3),
+        feet_contact=torch.ones(N, F, dtype=torch.bool),
+        first_contact=zeros(N, F, dtype=torch.bool), air_time=zeros(N, F),
+        feet_on_edge=zeros(N, F, dtype=torch.bool), unsafe_contacts=zeros(N, dtype=torch.int64),
+        level=zeros(N, dtype=torch.int64), command=zeros(N, 2), phase=zeros(N, F),
+        stance=torch.ones(N, F, dtype=torch.bool), feet_height=zeros(N, F),
+        swing_target=zeros(N, F), advance=torch.ones(N, dtype=torch.bool),
     )
-    return replace(state, **changes)
+    return replace(state, **{k: torch.as_tensor(v) for k, v in changes.items()})
+
+
+def value_of(name: str, state: StepState) -> np.ndarray:
+    """A registered term on ``state`` with its default (EnvConfig) parameters."""
+    return REWARD_TERMS[name](state, **PARAMS.get(name, {})).numpy()
 
 
 def rows(*per_env: list[float]) -> np.ndarray:
@@ -123,7 +139,7 @@ CASES: dict[str, tuple[dict, list[float], str]] = {
 @pytest.mark.parametrize("name", sorted(CASES))
 def test_term(name: str) -> None:
     changes, expected, why = CASES[name]
-    value = REWARD_TERMS[name](neutral(**changes))
+    value = value_of(name, neutral(**changes))
     assert value.shape == (N,)
     np.testing.assert_allclose(value, expected, rtol=1e-4, atol=1e-9, err_msg=why)
 
@@ -138,19 +154,19 @@ def test_neutral_state_has_no_penalty() -> None:
     # the (standing) clock asks
     bonuses = {"tracking_yaw", "pn_distance", "tracking_lin_vel", "tracking_ang_vel", "alive",
                "feet_contact_phase", "feet_phase"}
-    for name, fn in REWARD_TERMS.items():
+    for name in REWARD_TERMS:
         if name not in bonuses:
-            np.testing.assert_allclose(fn(state), 0.0, atol=1e-6, err_msg=name)
+            np.testing.assert_allclose(value_of(name, state), 0.0, atol=1e-6, err_msg=name)
 
 
 def test_tracking_goal_vel_is_capped_at_goal_speed() -> None:
     fast = neutral(lin_vel_world=rows([3.0, 0.0, 0.0], [0.0, 3.0, 0.0]))
-    np.testing.assert_allclose(REWARD_TERMS["tracking_goal_vel"](fast), [1.0, 0.0], atol=1e-4)
+    np.testing.assert_allclose(value_of("tracking_goal_vel", fast), [1.0, 0.0], atol=1e-4)
 
 
 def test_air_time_is_zero_without_touch_down() -> None:
     state = neutral(air_time=rows([0.8, 0.8], [0.2, 0.2]))
-    np.testing.assert_array_equal(REWARD_TERMS["feet_air_time"](state), [0.0, 0.0])
+    np.testing.assert_array_equal(value_of("feet_air_time", state), [0.0, 0.0])
 
 
 def test_preset_terms_are_registered() -> None:
@@ -161,7 +177,8 @@ def test_preset_terms_are_registered() -> None:
 def test_active_terms_skips_zero_weights() -> None:
     terms = active_terms({"torques": -1e-5, "pn_distance": 0.0, "collision": -10.0})
     assert set(terms) == {"torques", "collision"}
-    assert terms["collision"] == (REWARD_TERMS["collision"], -10.0)
+    assert terms["collision"].fn is REWARD_TERMS["collision"]
+    assert terms["collision"].weight == -10.0
 
 
 def test_active_terms_names_unknown_terms() -> None:
@@ -173,7 +190,7 @@ def test_compute_rewards_total_is_dt_times_weighted_sum() -> None:
     state = neutral(unsafe_contacts=np.array([1, 2]),
                     lin_vel_world=rows([0.4, 0.0, 0.0], [0.8, 0.0, 0.0]))
     weights = {"collision": -10.0, "tracking_goal_vel": 10.0, "torques": 0.0}
-    total, parts = compute_rewards(state, active_terms(weights))
+    total, parts = compute_rewards(state, active_terms(weights, PARAMS))
     assert set(parts) == {"collision", "tracking_goal_vel"}
     expected_parts = {"collision": DT * -10.0 * np.array([1.0, 2.0]),
                       "tracking_goal_vel": DT * 10.0 * np.array([0.5, 1.0])}
@@ -185,4 +202,4 @@ def test_compute_rewards_total_is_dt_times_weighted_sum() -> None:
 def test_compute_rewards_with_no_terms_is_zero() -> None:
     total, parts = compute_rewards(neutral(), {})
     assert parts == {}
-    np.testing.assert_array_equal(total, np.zeros(N))
+    np.testing.assert_array_equal(total.numpy(), np.zeros(N))

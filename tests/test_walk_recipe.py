@@ -12,6 +12,8 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from legoh import keys
 from legoh.envs.hiking_env import make_env
+from legoh.envs.mdp.events import randomizing
+from legoh.envs.mdp.state import compute_state, gait_phase
 from legoh.train.oracle import build_oracle
 from legoh.train.runner import batch_scalars
 from tests.conftest import compose_config
@@ -57,9 +59,9 @@ def test_schedule_counts_vectorised_steps() -> None:
     for _ in range(6):
         td = env.step(td.set(keys.ACTION, torch.zeros(8, env.num_actions)))["next"]
     assert env.global_steps == 6
-    assert env._randomizing()  # physics draws and pushes from step 5
-    env._reset_envs(np.arange(8))
-    assert (env.delay == 0).all()  # delays only after 10 vectorised steps
+    assert randomizing(env)  # physics draws and pushes from step 5
+    env._reset_envs(torch.arange(8))
+    assert (env.action_delay.delay == 0).all()  # delays only after 10 vectorised steps
     assert (env.sim.model_of_env > 0).all()  # randomised pool members, not the nominal 0
     env.close()
 
@@ -67,7 +69,7 @@ def test_schedule_counts_vectorised_steps() -> None:
 def test_nominal_model_before_the_schedule_starts() -> None:
     env = make_env(cfg_of(), num_envs=8)
     env.reset()
-    assert not env._randomizing()
+    assert not randomizing(env)
     assert (env.sim.model_of_env == 0).all()
     np.testing.assert_allclose(env.physics_features[0], [1, 0, 0, 0, 0, 1])
     env.close()
@@ -86,7 +88,9 @@ def test_delta_torques_sees_the_previous_step() -> None:
         term = out["next", keys.REWARD_TERMS, "delta_torques"]
         if step > 0:
             assert (term < 0).all(), f"delta_torques read 0 on step {step + 1}"
-        assert not np.shares_memory(env.last_torques, env.sim.sensordata)
+        sd = env.sim.sensordata.untyped_storage()
+        ptr = env.memory.torques.untyped_storage().data_ptr()
+        assert not sd.data_ptr() <= ptr < sd.data_ptr() + sd.nbytes()
         td = out["next"]
     env.close()
 
@@ -126,20 +130,19 @@ def test_command_steers_toward_the_waypoint_and_can_be_zero() -> None:
     assert ((cmd[~standing, 0] >= lo) & (cmd[~standing, 0] <= hi)).all()
     # turned left of the waypoint by 0.5 rad: a negative (clockwise) yaw rate
     env.sim.qpos[:, 3:7] = 0.0
-    pos, _, _ = env._base()
-    d = env._waypoint_xy(0) - pos[:, :2]
-    heading = np.arctan2(d[:, 1], d[:, 0]) + 0.5
-    env.sim.qpos[:, 3], env.sim.qpos[:, 6] = np.cos(heading / 2), np.sin(heading / 2)
-    env._update_base()
-    env._update_command()
-    assert (env.command[~standing, 1] < 0).all()
+    pos = env.sim.qpos[:, 0:3]
+    d = env.goals.ahead(0) - pos[:, :2]
+    heading = torch.atan2(d[:, 1], d[:, 0]) + 0.5
+    env.sim.qpos[:, 3], env.sim.qpos[:, 6] = torch.cos(heading / 2), torch.sin(heading / 2)
+    command = compute_state(env).command.numpy()
+    assert (command[~standing, 1] < 0).all()
     env.close()
 
 
 def test_evaluation_commands_the_goal_speed() -> None:
     env = make_env(cfg_of("env.command.zero_prob=1.0"), num_envs=4, evaluation=True)
     env.reset()
-    assert (env.command[:, 0] == env.cfg.goal_speed).all()
+    assert (env.command.value[:, 0] == env.cfg.goal_speed).all()
     env.close()
 
 
@@ -149,7 +152,7 @@ def test_gait_clock_is_observed_and_legs_alternate() -> None:
     proprio = td[keys.PROPRIO]
     np.testing.assert_allclose(proprio[:, -2:].numpy(), [[0.0, 1.0]] * 2, atol=1e-6)
     env.steps[:] = 10
-    phase = env._gait_phase()
+    phase = gait_phase(env.steps, env.dt, env.cfg.gait.period, env.num_feet).numpy()
     np.testing.assert_allclose((phase[:, 1] - phase[:, 0]) % 1.0, 0.5)
     env.close()
 

@@ -44,6 +44,7 @@ class SimConfig:
     decimation: int = 4  # physics steps per policy step
     threads: int = 0  # worker threads for batched stepping; 0: one per CPU core
     hfield_chunk: float = 4.0  # m, side of the height-field chunks (fast ray casts, docs/env.md)
+    backend: str = "mujoco"  # physics: mujoco (CPU, mujoco.rollout) | warp (MuJoCo Warp, GPU)
 
 
 @dataclass

@@ -121,6 +121,7 @@ class GaitConfig:
     period: float = 0.8  # s
     stance: float = 0.55  # fraction of the cycle in stance
     swing_height: float = 0.08  # m, foot lift the swing-height term asks for
+    phase_sigma: float = 0.005  # m^2, the feet-phase term's exp(-err^2 / sigma)
 
 
 @dataclass
@@ -154,7 +155,7 @@ class EnvConfig:
     # reward preset (REWARD_PRESETS): walk (default) | table6 (appendix Table 6 as written)
     reward_preset: str = "walk"
     # weight per term over the preset's; None keeps the preset's (a term of your own:
-    # +env.rewards.my_term=1.0 after registering it with legoh.envs.rewards.reward_term)
+    # +env.rewards.my_term=1.0 after registering it with legoh.envs.mdp.rewards.reward_term)
     rewards: dict[str, float | None] = field(default_factory=lambda: dict.fromkeys(
         sorted(set(table6_weights()) | set(walk_weights()))))
     # None: the preset's. True clips the step's total at 0 (legged_gym's only_positive_rewards)
@@ -163,6 +164,7 @@ class EnvConfig:
     termination_penalty: float | None = None
     tracking_sigma: float = 0.25  # m^2/s^2, the velocity kernels' exp(-err^2 / sigma)
     air_time_target: float = 0.5  # s, Table 6 feet air time
+    edge_min_level: int = 3  # the feet-edge term counts on levels above this one
     command: CommandConfig = field(default_factory=CommandConfig)
     gait: GaitConfig = field(default_factory=GaitConfig)
     depth: DepthConfig = field(default_factory=DepthConfig)

@@ -1,8 +1,10 @@
-"""N robots stepped in parallel by MuJoCo's own thread pool (``mujoco.rollout``).
+"""N robots stepped in parallel by MuJoCo's own thread pool (``mujoco.rollout``): the CPU
+backend of ``legoh.envs.physics``.
 
 Each env owns a physics state row; one call advances all N by ``substeps`` with the PD loop
 inside MuJoCo's actuators, releasing the GIL, and returns every substep's sensordata. Envs
-may use different MjModels of the same size signature (the domain-randomisation pool).
+may use different MjModels of the same size signature (the domain-randomisation pool). The
+state lives in numpy arrays that MuJoCo writes; the torch tensors are zero-copy views.
 """
 
 from __future__ import annotations
@@ -11,23 +13,30 @@ import os
 
 import mujoco
 import numpy as np
+import torch
 from mujoco import rollout
+
+from legoh.envs.sensors import DepthRaycaster
 
 STATE_SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
 
 class BatchedSim:
-    """Physics state of N envs as arrays, stepped together.
+    """Physics state of N envs, stepped together (the contract: ``legoh.envs.physics``).
 
     Attributes:
-        state: (N, nstate) float64, MuJoCo's full physics state per env.
-        sensordata: (N, substeps, nsensordata) float64, from the last step.
-        model_of_env: (N,) int, which pool model each env steps with.
+        state: (N, nstate) float64 numpy, MuJoCo's full physics state per env.
+        sensordata: (N, substeps, nsensordata) float64 tensor, from the last step.
+        model_of_env: (N,) int64 tensor, which pool model each env steps with.
     """
+
+    device = torch.device("cpu")
+    dtype = torch.float64
 
     def __init__(self, models: list[mujoco.MjModel], num_envs: int, substeps: int,
                  threads: int = 0) -> None:
         self.models = models
+        self.num_draws = len(models)
         self.num_envs, self.substeps = num_envs, substeps
         model = models[0]
         self.nq, self.nv = model.nq, model.nv
@@ -37,54 +46,71 @@ class BatchedSim:
         self._scratch = mujoco.MjData(model)  # resets only
         nstate = mujoco.mj_stateSize(model, STATE_SPEC)
         # Full physics state layout: time, qpos, qvel, act, ... (MuJoCo's mjtState order).
-        self._qpos = slice(1, 1 + self.nq)
-        self._qvel = slice(1 + self.nq, 1 + self.nq + self.nv)
         self.state = np.zeros((num_envs, nstate))
-        self.sensordata = np.zeros((num_envs, substeps, model.nsensordata))
+        self._sensordata = np.zeros((num_envs, substeps, model.nsensordata))
         self._state_out = np.zeros((num_envs, substeps, nstate))
         self._control = np.zeros((num_envs, substeps, model.nu))
-        self.model_of_env = np.zeros(num_envs, dtype=np.int64)
+        state = torch.from_numpy(self.state)
+        self.time = state[:, 0]
+        self.qpos = state[:, 1:1 + self.nq]
+        self.qvel = state[:, 1 + self.nq:1 + self.nq + self.nv]
+        self.sensordata = torch.from_numpy(self._sensordata)
+        self._control_t = torch.from_numpy(self._control)
+        self._model_of_env = np.zeros(num_envs, dtype=np.int64)
+        self.model_of_env = torch.from_numpy(self._model_of_env)
         self._model_list = [models[0]] * num_envs
 
-    @property
-    def qpos(self) -> np.ndarray:
-        """(N, nq) view into the state."""
-        return self.state[:, self._qpos]
-
-    @property
-    def qvel(self) -> np.ndarray:
-        """(N, nv) view into the state."""
-        return self.state[:, self._qvel]
-
-    def set_models(self, env_ids: np.ndarray, model_ids: np.ndarray) -> None:
+    def set_models(self, env_ids: torch.Tensor, model_ids: torch.Tensor) -> None:
         """Assign pool models to envs (takes effect from the next step)."""
         self.model_of_env[env_ids] = model_ids
-        self._model_list = [self.models[k] for k in self.model_of_env]
+        self._model_list = [self.models[k] for k in self._model_of_env]
 
-    def step(self, ctrl: np.ndarray) -> None:
+    def step(self, ctrl: torch.Tensor) -> None:
         """Advance every env by ``substeps`` physics steps holding ``ctrl`` (N, nu)."""
-        self._control[:] = ctrl[:, None, :]
+        self._control_t.copy_(ctrl[:, None, :])
         self._pool.rollout(self._model_list, self._datas, self.state, self._control,
                            nstep=self.substeps, state=self._state_out,
-                           sensordata=self.sensordata, skip_checks=True)
+                           sensordata=self._sensordata, skip_checks=True)
         self.state[:] = self._state_out[:, -1]
 
-    def reset_envs(self, env_ids: np.ndarray, qpos: np.ndarray, qvel: np.ndarray,
-                   ctrl: np.ndarray) -> None:
+    def reset_envs(self, env_ids: torch.Tensor, qpos: torch.Tensor, qvel: torch.Tensor,
+                   ctrl: torch.Tensor) -> None:
         """Put envs in a new state and fill their sensordata by a forward pass.
 
         A per-env loop, on reset envs only: a forward pass is the only way to get the
         sensors of a state that was never stepped.
         """
         d = self._scratch
-        for k, env in enumerate(env_ids):
-            model = self.models[self.model_of_env[env]]
+        qpos, qvel, ctrl = qpos.numpy(), qvel.numpy(), ctrl.numpy()
+        for k, env in enumerate(env_ids.tolist()):
+            model = self.models[self._model_of_env[env]]
             mujoco.mj_resetData(model, d)
             d.qpos[:], d.qvel[:], d.ctrl[:] = qpos[k], qvel[k], ctrl[k]
             mujoco.mj_forward(model, d)
             mujoco.mj_getState(model, d, self.state[env], STATE_SPEC)
-            self.sensordata[env, :] = d.sensordata
+            self._sensordata[env, :] = d.sensordata
+
+    def make_depth_camera(self, fovy_deg: float, width: int, height: int, far: float
+                          ) -> RaycastCamera:
+        """A ray-casting depth camera against the nominal world (static geoms)."""
+        return RaycastCamera(self.models[0], fovy_deg, width, height, far, self.threads)
 
     def close(self) -> None:
         """Stop the thread pool."""
         self._pool.close()
+
+
+class RaycastCamera:
+    """``DepthRaycaster`` behind the backend contract: torch poses in, torch depth out."""
+
+    def __init__(self, model: mujoco.MjModel, fovy_deg: float, width: int, height: int,
+                 far: float, threads: int) -> None:
+        self._world = mujoco.MjData(model)  # the world's static geoms, posed once
+        mujoco.mj_forward(model, self._world)
+        self._caster = DepthRaycaster(model, fovy_deg, width, height, far, threads)
+
+    def render(self, cam_pos: torch.Tensor, cam_mat: torch.Tensor) -> torch.Tensor:
+        """Planar depth (k, H, W) in metres for camera positions (k, 3), rotations (k, 3, 3)."""
+        depth = self._caster.render(self._world, np.ascontiguousarray(cam_pos.numpy()),
+                                    np.ascontiguousarray(cam_mat.numpy()))
+        return torch.from_numpy(depth)

@@ -1,39 +1,44 @@
-"""Batched rotations for (N, ...) arrays of MuJoCo quaternions (w, x, y, z)."""
+"""Batched rotations for (N, ...) torch tensors of MuJoCo quaternions (w, x, y, z)."""
 
-import numpy as np
+import math
+
+import torch
 
 
-def quat_to_mat(q: np.ndarray) -> np.ndarray:
+def quat_to_mat(q: torch.Tensor) -> torch.Tensor:
     """(..., 4) unit quaternions -> (..., 3, 3) rotation matrices (body to world)."""
-    w, x, y, z = np.moveaxis(q, -1, 0)
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], -2)
+    w, x, y, z = q.unbind(-1)
+    xx, yy, zz, xy, xz, yz = x * x, y * y, z * z, x * y, x * z, y * z
+    wx, wy, wz = w * x, w * y, w * z
+    return torch.stack([
+        1 - 2 * (yy + zz), 2 * (xy - wz), 2 * (xz + wy),
+        2 * (xy + wz), 1 - 2 * (xx + zz), 2 * (yz - wx),
+        2 * (xz - wy), 2 * (yz + wx), 1 - 2 * (xx + yy),
+    ], -1).reshape(*q.shape[:-1], 3, 3)
 
 
-def world_to_body(rot: np.ndarray, v: np.ndarray) -> np.ndarray:
+def world_to_body(rot: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
     """Express world vectors (N, 3) in the body frame given body-to-world rotations (N, 3, 3)."""
-    return np.einsum("nji,nj->ni", rot, v)
+    return (rot * v[:, :, None]).sum(1)
 
 
-def roll_pitch_yaw(rot: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def roll_pitch_yaw(rot: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """ZYX Euler angles (rad) of rotation matrices (N, 3, 3)."""
-    roll = np.arctan2(rot[:, 2, 1], rot[:, 2, 2])
-    pitch = np.arcsin(np.clip(-rot[:, 2, 0], -1.0, 1.0))
-    yaw = np.arctan2(rot[:, 1, 0], rot[:, 0, 0])
+    roll = torch.atan2(rot[:, 2, 1], rot[:, 2, 2])
+    pitch = torch.asin(torch.clamp(-rot[:, 2, 0], -1.0, 1.0))
+    yaw = torch.atan2(rot[:, 1, 0], rot[:, 0, 0])
     return roll, pitch, yaw
 
 
-def to_yaw_frame(xy: np.ndarray, origin: np.ndarray, yaw: np.ndarray) -> np.ndarray:
+def to_yaw_frame(xy: torch.Tensor, origin: torch.Tensor, yaw: torch.Tensor) -> torch.Tensor:
     """World points (N, ..., 2) relative to ``origin`` (N, 2), rotated by -yaw (N,)."""
-    d = xy - origin.reshape(origin.shape[0], *([1] * (xy.ndim - 2)), 2)
-    c = np.cos(yaw).reshape(-1, *([1] * (xy.ndim - 2)))
-    s = np.sin(yaw).reshape(-1, *([1] * (xy.ndim - 2)))
-    return np.stack([c * d[..., 0] + s * d[..., 1], -s * d[..., 0] + c * d[..., 1]], -1)
+    extra = [1] * (xy.dim() - 2)
+    d = xy - origin.reshape(origin.shape[0], *extra, 2)
+    c, s = torch.cos(yaw).reshape(-1, *extra), torch.sin(yaw).reshape(-1, *extra)
+    dx, dy = d[..., 0], d[..., 1]
+    return torch.stack([c * dx + s * dy, c * dy - s * dx], -1)
 
 
-def wrap_angle(a: np.ndarray) -> np.ndarray:
+def wrap_angle(a: torch.Tensor) -> torch.Tensor:
     """Angles wrapped to [-pi, pi)."""
-    return (a + np.pi) % (2 * np.pi) - np.pi
+    return torch.remainder(a + math.pi, 2 * math.pi) - math.pi

@@ -191,3 +191,15 @@ def build_scene(robot_cfg: RobotConfig, terrain: TerrainMap, dt: float,
     return Scene(model=model, robot=info, terrain=terrain, sensors=slices,
                  stand_height=standing_base_height(model, info), qpos_adr=qpos_adr,
                  dof_adr=dof_adr, scan_heights=scan_height_grid(terrain))
+
+
+def feet_rest_height(scene: Scene) -> np.ndarray:
+    """(F,) height of each foot body's origin above flat ground in the default pose: the
+    zero of the swing-height terms' foot lift."""
+    model, d = scene.model, mujoco.MjData(scene.model)
+    d.qpos[:] = model.qpos0
+    d.qpos[0:3] = [0.0, 0.0, scene.stand_height]
+    d.qpos[3:7] = [1.0, 0.0, 0.0, 0.0]
+    d.qpos[scene.qpos_adr] = scene.robot.default_pose
+    mujoco.mj_kinematics(model, d)
+    return d.xpos[[model.body(b).id for b in scene.robot.feet_bodies], 2].copy()

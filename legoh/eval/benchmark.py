@@ -129,7 +129,7 @@ def rollout_level(env, actor, level: int) -> LevelRecord:
     paths = [track[: last[i] + 2, i] for i in range(n)]
     walked = distance_walked(start, track[last + 1, np.arange(n)], env.trails.terminus[tile])
     out = robot_outcomes(waypoint_count=count, dt=env.dt, distance=walked, **arr)
-    names = np.asarray(env.terrain.categories)[env.category]
+    names = np.asarray(env.terrain.categories)[env.category.cpu().numpy()]
     return LevelRecord(level=level, outcomes=out, category=names, tile=tile, paths=paths,
                        steps=t_len)
 

@@ -182,7 +182,7 @@ def mirror_curriculum(collector: BaseCollector, env: EnvBase, batch) -> None:
     if isinstance(collector, Collector):
         return
     base = getattr(env, "base_env", env)  # the HikingEnv under a stage-2 TransformedEnv
-    base.level[:] = batch["next", keys.LEVEL][:, -1].cpu().numpy()
+    base.level[:] = batch["next", keys.LEVEL][:, -1].to(base.level.device)
     base.global_steps += int(batch.shape[-1])
 
 
@@ -191,7 +191,7 @@ def _worker_factories(make_env_fn, per_worker: int, workers: int, env: EnvBase |
     """One factory per worker; each carries its slice of ``env``'s curriculum (if given)."""
     base = getattr(env, "base_env", env)
     return [_WorkerEnv(make_env_fn, per_worker, None if base is None else {
-        "level": base.level[i * per_worker:(i + 1) * per_worker].copy(),
+        "level": base.level[i * per_worker:(i + 1) * per_worker].cpu().clone(),
         "global_steps": int(base.global_steps)}) for i in range(workers)]
 
 
@@ -209,6 +209,6 @@ class _WorkerEnv:
         env = self.make_env_fn(self.num_envs)
         if self.curriculum is not None:
             base = getattr(env, "base_env", env)
-            base.level[:] = self.curriculum["level"]
+            base.level[:] = torch.as_tensor(self.curriculum["level"])
             base.global_steps = self.curriculum["global_steps"]
         return env

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import torch
 from omegaconf import DictConfig, OmegaConf
 from tqdm import tqdm
 
@@ -170,7 +171,7 @@ def restore_training(state: dict, models: dict, optims: dict, env) -> int:
     for name, opt in optims.items():
         opt.load_state_dict(state["optimizers"][name])
     base = getattr(env, "base_env", env)
-    base.level[:] = np.asarray(state["curriculum"]["level"])
+    base.level[:] = torch.as_tensor(state["curriculum"]["level"])
     base.global_steps = int(state["curriculum"]["global_steps"])
     restore_rng(state["rng"])
     return int(state["iteration"])

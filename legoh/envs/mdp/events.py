@@ -1,0 +1,160 @@
+"""Events: what happens to envs at a reset (curriculum, spawn, physics draw, delay,
+command) and during the step (pushes, the action delay). ``RESET_EVENTS`` run in order on
+the envs being reset; ``STEP_EVENTS`` before each physics step. Randomness comes from the
+env's ``torch.Generator`` (``env.gen``), on the env's device.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import torch
+
+from legoh.envs.curriculum import update_levels
+from legoh.envs.math3d import wrap_angle
+
+SPAWN_YAW_NOISE = 0.3  # rad, uniform either side of the trail's start heading
+SPAWN_LIFT = 0.02  # m above the standing height: no initial ground penetration
+
+
+def uniform(env, low: float, high: float, *shape: int) -> torch.Tensor:
+    """U(low, high) samples of ``shape`` from the env's generator, physics dtype."""
+    u = torch.rand(*shape, generator=env.gen, device=env.device, dtype=env.dtype)
+    return low + (high - low) * u
+
+
+def randomizing(env) -> bool:
+    """Physics draws and pushes are on: randomisation enabled and its start passed."""
+    rc = env.cfg.randomization
+    return rc.enabled and env.sim.num_draws > 1 and env.global_steps >= rc.start_after_steps
+
+
+# ------------------------------------------------------------------ reset events
+def curriculum(env, ids: torch.Tensor) -> None:
+    """Appendix 6.2.1: finished episodes move their env's level up or down."""
+    cur = env.cfg.curriculum
+    if not cur.enabled:
+        return
+    done = ids[env.steps[ids] > 0]
+    if len(done) == 0:
+        return
+    t = env.trails_t
+    tile = env.goals.tile[done]
+    covered = env.goals.progress(env.sim.qpos[:, 0:2])[done] * t.length[tile]
+    expected = torch.clamp(t.length[tile], max=env.cfg.goal_speed * env.cfg.episode_length_s)
+    reached = torch.linalg.vector_norm(t.terminus[tile] - env.sim.qpos[done, 0:2], dim=1) < (
+        env.reach_radius)
+    env.level[done] = update_levels(env.level[done], covered, expected, reached,
+                                    env.terrain.levels, env.gen, cur.up, cur.down)
+
+
+def spawn(env, ids: torch.Tensor) -> None:
+    """A new tile of the env's category and level, a jittered start pose on it, the
+    default joint pose, and the physics draw (nominal until the schedule starts)."""
+    k, tm, t = len(ids), env.terrain, env.trails_t
+    variant = torch.randint(0, tm.variants, (k,), generator=env.gen, device=env.device)
+    tiles = (env.category[ids] * tm.levels + env.level[ids]) * tm.variants + variant
+    env.goals.tile[ids] = tiles
+    start = t.start[tiles].clone()
+    start[:, :2] += uniform(env, -1.0, 1.0, k, 2) * env.cfg.spawn_noise
+    start[:, 2] = env.ground.bilinear(start[:, :2]) + env.scene.stand_height + SPAWN_LIFT
+    yaw = t.start_yaw[tiles] + uniform(env, -SPAWN_YAW_NOISE, SPAWN_YAW_NOISE, k)
+    qpos = env.qpos0.expand(k, -1).clone()
+    qpos[:, 0:3] = start
+    qpos[:, 3], qpos[:, 6] = torch.cos(yaw / 2), torch.sin(yaw / 2)
+    qpos[:, 4:6] = 0.0
+    qpos[:, env.qpos_adr] = env.default_pose
+    env.ctrl[ids] = env.default_pose
+    # draw 0 is the nominal one; the randomised ones 1.. join on schedule
+    drawn = (torch.randint(1, env.sim.num_draws, (k,), generator=env.gen, device=env.device)
+             if randomizing(env) else torch.zeros(k, dtype=torch.int64, device=env.device))
+    env.sim.set_models(ids, drawn)
+    env.sim.reset_envs(ids, qpos, torch.zeros(k, env.sim.nv, device=env.device,
+                                              dtype=env.dtype), env.ctrl[ids])
+
+
+def draw_delay(env, ids: torch.Tensor) -> None:
+    """Appendix Table 5: an action delay per episode, once the schedule allows it."""
+    rc = env.cfg.randomization
+    on = rc.enabled and env.global_steps >= rc.delay_after_steps
+    env.action_delay.draw(env, ids, rc.max_action_delay if on else 0)
+
+
+def draw_command(env, ids: torch.Tensor) -> None:
+    """The episode's forward speed: drawn (or zero: stand still) in training, the goal
+    speed in evaluation."""
+    env.command.resample(env, ids)
+
+
+RESET_EVENTS: list[Callable] = [curriculum, spawn, draw_delay, draw_command]
+
+
+# ------------------------------------------------------------------ step events
+def push(env) -> None:
+    """Appendix Table 5: every push interval, a random base xy velocity kick."""
+    rc = env.cfg.randomization
+    if not (randomizing(env) and rc.push_max_vel > 0):
+        return
+    due = (env.steps > 0) & (env.steps % env.push_every == 0)
+    kick = uniform(env, -rc.push_max_vel, rc.push_max_vel, env.num_envs, 2)
+    env.sim.qvel[:, 0:2] += kick * due[:, None]
+
+
+STEP_EVENTS: list[Callable] = [push]
+
+
+# ------------------------------------------------------------------ stateful event terms
+class ActionDelay:
+    """The last ``max_delay + 1`` actions (N, D + 1, A), newest first; each env applies the
+    one ``delay`` (N,) steps old."""
+
+    def __init__(self, n: int, max_delay: int, actions: int, device: torch.device,
+                 dtype: torch.dtype) -> None:
+        self.buf = torch.zeros(n, max_delay + 1, actions, device=device, dtype=dtype)
+        self.delay = torch.zeros(n, dtype=torch.int64, device=device)
+        self._rows = torch.arange(n, device=device)
+
+    def __call__(self, action: torch.Tensor) -> torch.Tensor:
+        """Push ``action`` (N, A); the action each env applies now (N, A)."""
+        self.buf = torch.cat([action[:, None], self.buf[:, :-1]], 1)
+        return self.buf[self._rows, self.delay]
+
+    def draw(self, env, ids: torch.Tensor, max_delay: int) -> None:
+        self.delay[ids] = torch.randint(0, max_delay + 1, (len(ids),), generator=env.gen,
+                                        device=env.device)
+
+    def reset(self, ids: torch.Tensor) -> None:
+        self.buf[ids] = 0.0
+
+
+class Command:
+    """The velocity command the walking rewards track: forward speed (N,) drawn per
+    episode, yaw rate steering toward the current waypoint, as (N, 2)."""
+
+    def __init__(self, n: int, cfg, goal_speed: float, evaluation: bool,
+                 device: torch.device, dtype: torch.dtype) -> None:
+        self.cfg, self.goal_speed, self.evaluation = cfg, goal_speed, evaluation
+        self.speed = torch.zeros(n, device=device, dtype=dtype)  # m/s
+        self.value = torch.zeros(n, 2, device=device, dtype=dtype)
+
+    def resample(self, env, ids: torch.Tensor) -> None:
+        if self.evaluation:
+            self.speed[ids] = self.goal_speed
+            return
+        k = len(ids)
+        speed = uniform(env, self.cfg.speed[0], self.cfg.speed[1], k)
+        stand = uniform(env, 0.0, 1.0, k) < self.cfg.zero_prob
+        self.speed[ids] = torch.where(stand, 0.0, speed)
+
+    def update(self, waypoint_xy: torch.Tensor, pos: torch.Tensor, yaw: torch.Tensor
+               ) -> torch.Tensor:
+        """The command (N, 2) for base positions (N, 3) and yaws (N,)."""
+        d = waypoint_xy - pos[:, :2]
+        err = wrap_angle(torch.atan2(d[:, 1], d[:, 0]) - yaw)
+        c = self.cfg
+        rate = torch.clamp(c.heading_gain * err, -c.max_yaw_rate, c.max_yaw_rate)
+        self.value = torch.stack([self.speed, torch.where(self.speed > 0, rate, 0.0)], 1)
+        return self.value
+
+    def reset(self, ids: torch.Tensor) -> None:
+        """The command is redrawn by ``draw_command``; nothing to clear."""
