@@ -44,6 +44,11 @@ def warp_device(device: str) -> wp.context.Device:
     return wp.get_device("cuda:0" if device == "cuda" else device)
 
 
+def torch_device(device: wp.context.Device) -> torch.device:
+    """The torch device sharing memory with a Warp device."""
+    return torch.device("cpu" if device.is_cpu else f"cuda:{device.ordinal}")
+
+
 def draw_fields(model: mujoco.MjModel, base_body: str, draws: PhysicsDraw
                 ) -> dict[str, np.ndarray]:
     """Each model field the draws change, as (K, ...) rows, one per draw.
@@ -92,7 +97,7 @@ class WarpSim:
         self.nconmax = DEFAULT_NCONMAX if nconmax is None else nconmax
         self.njmax = DEFAULT_NJMAX if njmax is None else njmax
         self.wp_device = warp_device(device)
-        self.device = torch.device("cpu" if self.wp_device.is_cpu else f"cuda:{self.wp_device.ordinal}")
+        self.device = torch_device(self.wp_device)
         self.use_graph = graph and self.wp_device.is_cuda
         self.overflow_check_every = overflow_check_every
         self.overflow_events = 0
@@ -119,7 +124,8 @@ class WarpSim:
                 raise ValueError(f"model field {k}: Warp shape {tuple(v.shape)} does not "
                                  f"match the draws' {tuple(self._tables[k].shape)}")
         self.model_of_env = torch.zeros(num_envs, dtype=torch.long, device=self.device)
-        self.set_models(torch.arange(num_envs, device=self.device), torch.zeros_like(self.model_of_env))
+        self.set_models(torch.arange(num_envs, device=self.device),
+                        torch.zeros_like(self.model_of_env))
         self._graph = None
         with wp.ScopedDevice(self.wp_device):
             mjw.forward(self.m, self.d)
@@ -240,7 +246,7 @@ class WarpDepthCamera:
                  width: int, height: int, far: float) -> None:
         self.width, self.height, self.far = width, height, far
         self.wp_device = device
-        self.device = torch.device("cpu" if device.is_cpu else f"cuda:{device.ordinal}")
+        self.device = torch_device(device)
         dirs = camera_ray_directions(fovy_deg, width, height).reshape(-1, 3)
         self.nray = len(dirs)
         self._cos = torch.as_tensor(-dirs[:, 2], dtype=torch.float32, device=self.device)
