@@ -28,6 +28,8 @@ import numpy as np
 import torch
 import warp as wp
 
+wp.config.quiet = True  # no line per compiled kernel module (MuJoCo Warp has hundreds)
+
 from legoh.envs.randomization import PhysicsDraw, build_model_pool
 from legoh.envs.sensors import WORLD_GROUPS, camera_ray_directions
 
