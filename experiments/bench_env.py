@@ -35,6 +35,8 @@ import time
 from pathlib import Path
 
 os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco is imported: headless rendering
+# MuJoCo Warp's compiled kernels (--backend warp): the tests' cache, before warp starts
+os.environ.setdefault("WARP_CACHE_PATH", str(Path(__file__).resolve().parents[1] / ".warp_cache"))
 
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402

@@ -22,20 +22,23 @@ import platform
 import time
 from pathlib import Path
 
-import mujoco
-import numpy as np
-import torch
-from hydra import compose, initialize_config_dir
-from mujoco import rollout
-from omegaconf import OmegaConf
+# MuJoCo Warp's compiled kernels: the same cache as the tests (before warp is initialised)
+os.environ.setdefault("WARP_CACHE_PATH", str(Path(__file__).resolve().parents[1] / ".warp_cache"))
 
-from legoh.config import register_configs
-from legoh.envs.randomization import PhysicsDraw
-from legoh.envs.robots import CAMERA_NAME
-from legoh.envs.scene import Scene, build_scene
-from legoh.envs.sensors import DepthRaycaster
-from legoh.envs.terrain import build_terrain_map
-from legoh.envs.warp_sim import WarpSim
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
+import torch  # noqa: E402
+from hydra import compose, initialize_config_dir  # noqa: E402
+from mujoco import rollout  # noqa: E402
+from omegaconf import OmegaConf  # noqa: E402
+
+from legoh.config import register_configs  # noqa: E402
+from legoh.envs.randomization import PhysicsDraw  # noqa: E402
+from legoh.envs.robots import CAMERA_NAME  # noqa: E402
+from legoh.envs.scene import Scene, build_scene  # noqa: E402
+from legoh.envs.sensors import DepthRaycaster  # noqa: E402
+from legoh.envs.terrain import build_terrain_map  # noqa: E402
+from legoh.envs.warp_sim import WarpSim  # noqa: E402
 
 print = functools.partial(print, flush=True)  # noqa: A001 - progress shows as it happens
 ROOT = Path(__file__).resolve().parents[1]

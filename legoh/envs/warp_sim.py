@@ -28,10 +28,10 @@ import numpy as np
 import torch
 import warp as wp
 
-wp.config.quiet = True  # no line per compiled kernel module (MuJoCo Warp has hundreds)
-
 from legoh.envs.randomization import PhysicsDraw, build_model_pool
 from legoh.envs.sensors import WORLD_GROUPS, camera_ray_directions
+
+wp.config.quiet = True  # no line per compiled kernel module (MuJoCo Warp has hundreds)
 
 # Default per-world capacities: a standing humanoid on height-field chunks makes about 8-20
 # contacts (4 corners per foot box, more on uneven ground); each frictional contact is up to
@@ -214,10 +214,10 @@ class WarpSim:
 
     # -- sensors ---------------------------------------------------------------------------
 
-    def make_depth_camera(self, fovy_deg: float, width: int, height: int, far: float
-                          ) -> WarpDepthCamera:
+    def make_depth_camera(self, fovy_deg: float, width: int, height: int, far: float,
+                          bvh: bool = True) -> WarpDepthCamera:
         """A depth camera casting its rays on this backend's device."""
-        return WarpDepthCamera(self.mjm, self.wp_device, fovy_deg, width, height, far)
+        return WarpDepthCamera(self.mjm, self.wp_device, fovy_deg, width, height, far, bvh)
 
     def close(self) -> None:
         """Release the graph and the device arrays."""
@@ -241,11 +241,14 @@ class WarpDepthCamera:
     :class:`legoh.envs.sensors.DepthRaycaster`.
 
     Every world shares the terrain, so the cameras of all k envs are cast as k x H x W rays of
-    one world (the robot's own colliders and visual meshes are never hit).
+    one world (the robot's own colliders and visual meshes are never hit). With ``bvh`` the
+    rays walk MuJoCo Warp's bounding-volume hierarchy of the world geoms (and of each height
+    field) instead of testing every geom: measured 5.6x faster on Warp's CPU device for one
+    tile's 32 chunks, the same depths within 4e-6 m.
     """
 
     def __init__(self, model: mujoco.MjModel, device: wp.context.Device, fovy_deg: float,
-                 width: int, height: int, far: float) -> None:
+                 width: int, height: int, far: float, bvh: bool = True) -> None:
         self.width, self.height, self.far = width, height, far
         self.wp_device = device
         self.device = torch_device(device)
@@ -256,6 +259,13 @@ class WarpDepthCamera:
             self.m = mjw.put_model(model)
             self.d = mjw.make_data(model, nworld=1, nconmax=1, njmax=1)
             mjw.kinematics(self.m, self.d)  # static geoms' poses: all the rays see
+            self._rc = None
+            if bvh:
+                groups = [g for g in range(len(WORLD_GROUPS)) if WORLD_GROUPS[g]]
+                self._rc = mjw.create_render_context(
+                    model, nworld=1, cam_res=(width, height), render_rgb=False,
+                    render_depth=False, enabled_geom_groups=groups, use_textures=False)
+                mjw.refit_bvh(self.m, self.d, self._rc)
             self._dirs = wp.array(dirs.astype(np.float32), dtype=wp.vec3)
         self._groups = wp.types.vector(6, dtype=wp.float32)(*[float(g) for g in WORLD_GROUPS])
         self._buffers: dict[int, tuple] = {}
@@ -283,7 +293,8 @@ class WarpDepthCamera:
                       inputs=[wp.from_torch(cam_pos, dtype=wp.vec3),
                               wp.from_torch(cam_mat, dtype=wp.mat33), self._dirs, self.nray],
                       outputs=[pnt, vec])
-            mjw.rays(self.m, self.d, pnt, vec, self._groups, True, exclude, dist, geomid, normal)
+            mjw.rays(self.m, self.d, pnt, vec, self._groups, True, exclude, dist, geomid, normal,
+                     rc=self._rc)
         d = wp.to_torch(dist).view(k, self.nray)
         d = torch.where(d < 0, torch.inf, d)  # a miss
         return torch.clamp(d * self._cos, max=self.far).view(k, self.height, self.width)
