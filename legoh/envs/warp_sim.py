@@ -19,8 +19,10 @@ tensors that share memory with Warp's arrays (``wp.to_torch``, zero-copy):
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import warnings
+from collections.abc import Iterator
 
 import mujoco
 import mujoco_warp as mjw
@@ -49,6 +51,26 @@ def warp_device(device: str) -> wp.context.Device:
 def torch_device(device: wp.context.Device) -> torch.device:
     """The torch device sharing memory with a Warp device."""
     return torch.device("cpu" if device.is_cpu else f"cuda:{device.ordinal}")
+
+
+@contextlib.contextmanager
+def on_warp(device: wp.context.Device) -> Iterator[None]:
+    """Run Warp work on ``device``, ordered after the torch work queued before it and before
+    the torch work queued after it.
+
+    Warp launches on its own CUDA stream (graph capture cannot use torch's legacy default
+    stream), so the two streams wait for each other at the boundary: cheap events, no host
+    sync. On the CPU both run in program order.
+    """
+    with wp.ScopedDevice(device):
+        if device.is_cpu:
+            yield
+            return
+        warp_stream = wp.stream_to_torch(wp.get_stream(device))
+        torch_stream = torch.cuda.current_stream(torch_device(device))
+        warp_stream.wait_stream(torch_stream)
+        yield
+        torch_stream.wait_stream(warp_stream)
 
 
 def draw_fields(model: mujoco.MjModel, base_body: str, draws: PhysicsDraw
@@ -112,6 +134,7 @@ class WarpSim:
                                    njmax=self.njmax)
             # substep-major so each substep's copy is one contiguous memcpy
             self._sens = wp.zeros((substeps, num_envs, model.nsensordata), dtype=float)
+        wp.synchronize_device(self.wp_device)  # before torch writes into these arrays
         self.qpos = wp.to_torch(self.d.qpos)
         self.qvel = wp.to_torch(self.d.qvel)
         self.time = wp.to_torch(self.d.time)
@@ -129,7 +152,7 @@ class WarpSim:
         self.set_models(torch.arange(num_envs, device=self.device),
                         torch.zeros_like(self.model_of_env))
         self._graph = None
-        with wp.ScopedDevice(self.wp_device):
+        with on_warp(self.wp_device):
             mjw.forward(self.m, self.d)
         self._record_sensors_all()
 
@@ -151,7 +174,7 @@ class WarpSim:
     def step(self, ctrl: torch.Tensor) -> None:
         """Advance every world by ``substeps`` physics steps holding ``ctrl`` (N, nu)."""
         self._ctrl.copy_(torch.as_tensor(ctrl, dtype=self.dtype, device=self.device))
-        with wp.ScopedDevice(self.wp_device):
+        with on_warp(self.wp_device):
             if not self.use_graph:
                 self._substeps()
             else:
@@ -173,10 +196,11 @@ class WarpSim:
             return
         mask = torch.zeros(self.num_envs, dtype=torch.bool, device=self.device)
         mask[ids] = True
-        with wp.ScopedDevice(self.wp_device):
+        with on_warp(self.wp_device):
             mjw.reset_data(self.m, self.d, reset=wp.from_torch(mask))
-            as_t = lambda x: torch.as_tensor(x, dtype=self.dtype, device=self.device)  # noqa: E731
-            self.qpos[ids], self.qvel[ids], self._ctrl[ids] = as_t(qpos), as_t(qvel), as_t(ctrl)
+        as_t = lambda x: torch.as_tensor(x, dtype=self.dtype, device=self.device)  # noqa: E731
+        self.qpos[ids], self.qvel[ids], self._ctrl[ids] = as_t(qpos), as_t(qvel), as_t(ctrl)
+        with on_warp(self.wp_device):
             # The other worlds are forwarded too: it rewrites only their derived quantities
             # (their state, warm start and recorded sensordata are untouched).
             mjw.forward(self.m, self.d)
@@ -267,6 +291,7 @@ class WarpDepthCamera:
                     render_depth=False, enabled_geom_groups=groups, use_textures=False)
                 mjw.refit_bvh(self.m, self.d, self._rc)
             self._dirs = wp.array(dirs.astype(np.float32), dtype=wp.vec3)
+        wp.synchronize_device(device)
         self._groups = wp.types.vector(6, dtype=wp.float32)(*[float(g) for g in WORLD_GROUPS])
         self._buffers: dict[int, tuple] = {}
 
@@ -288,7 +313,7 @@ class WarpDepthCamera:
         if k == 0:
             return torch.zeros(0, self.height, self.width, device=self.device)
         pnt, vec, exclude, dist, geomid, normal = self._buffers_for(k)
-        with wp.ScopedDevice(self.wp_device):
+        with on_warp(self.wp_device):
             wp.launch(_camera_rays, dim=(k, self.nray),
                       inputs=[wp.from_torch(cam_pos, dtype=wp.vec3),
                               wp.from_torch(cam_mat, dtype=wp.mat33), self._dirs, self.nray],
