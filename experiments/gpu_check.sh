@@ -16,7 +16,9 @@
 #
 #   DEVICE=cpu SIZES="8" TRAIN_SECONDS=20 bash experiments/gpu_check.sh --here   # dry run, CPU
 #
-# --here: use this machine's Python environment (no wheels, no install).
+# --here: use this machine's Python environment (no wheels, no install). The install alone,
+# dry, with a local Python 3.12 (EXTRA_PATH: what the lent image has and this one lacks):
+#   PY=python3.12 EXTRA_PATH=/tmp/np312 INSTALL_ONLY=1 bash experiments/gpu_check.sh
 set -uo pipefail
 cd "$(dirname "$0")/.."
 STAGE=${1:-check}
@@ -31,8 +33,8 @@ RESULTS=${RESULTS:-experiments/results/gpu_check}
 mkdir -p "$RESULTS" "$PARTS"
 LOG="$RESULTS/gpu_check.log"
 
-# the parts this call carried
-if [ -d .whl ]; then cp .whl/part*/wheels.tar.* "$PARTS"/ 2>/dev/null || true; fi
+# the parts this call carried (the last one also brings their count and the joined hash)
+if [ -d .whl ]; then cp .whl/part*/wheels.* "$PARTS"/ 2>/dev/null || true; fi
 if [ "$STAGE" = receive ]; then
   ls -la "$PARTS"; du -sh "$PARTS"; exit 0
 fi
@@ -51,23 +53,28 @@ stage() {  # stage NAME SECONDS CMD...: run with a limit that also fits what is 
 }
 
 : > "$LOG"
+PY=${PY:-python3}
 if [ "$STAGE" != --here ]; then
-  ls "$PARTS"/wheels.tar.* >/dev/null 2>&1 || { echo "no wheel parts in $PARTS"; exit 1; }
-  mkdir -p /tmp/legoh_whl
-  cat "$PARTS"/wheels.tar.* | tar -xf - -C /tmp/legoh_whl || { echo "wheel parts incomplete"; exit 1; }
-  python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade \
+  have=$(ls "$PARTS"/wheels.tar.* 2>/dev/null | wc -l)
+  want=$(cat "$PARTS/wheels.parts" 2>/dev/null || echo '?')
+  if [ "$have" != "$want" ] || [ "$(cat "$PARTS"/wheels.tar.* | sha256sum | cut -d' ' -f1)" \
+       != "$(cat "$PARTS/wheels.sha256")" ]; then
+    echo "wheel parts incomplete: $have of $want in $PARTS (the machine went cold between"
+    echo "calls?): send them again from part 1 (docs/scaling.md)"; exit 1
+  fi
+  rm -rf /tmp/legoh_whl && mkdir -p /tmp/legoh_whl
+  cat "$PARTS"/wheels.tar.* | tar -xf - -C /tmp/legoh_whl
+  $PY -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade \
     --target /tmp/site /tmp/legoh_whl/*.whl || exit 1
-  export PYTHONPATH=/tmp/site:$PWD
+  export PYTHONPATH=/tmp/site${EXTRA_PATH:+:$EXTRA_PATH}:$PWD
   echo "installed in $(( $(date +%s) - START ))s" | tee -a "$LOG"
 fi
 export MUJOCO_GL=${MUJOCO_GL:-egl} WARP_CACHE_PATH=${WARP_CACHE_PATH:-/tmp/warp_cache}
 export PYTHONPATH=${PYTHONPATH:-}:$PWD
-PY=${PY:-python3}
 { nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader 2>/dev/null
-  $PY -c "import torch, warp, mujoco, mujoco_warp, torchrl; print('torch', torch.__version__,
-'cuda', torch.cuda.is_available(), 'warp', warp.__version__, 'mujoco', mujoco.__version__,
-'torchrl', torchrl.__version__)"; } 2>&1 | grep -v '^Warp\|^   ' | tee -a "$LOG"
+  $PY experiments/gpu_imports.py; } 2>&1 | grep -v '^Warp\|^   ' | tee -a "$LOG"
 
+if [ -n "${INSTALL_ONLY:-}" ]; then exit 0; fi  # a dry run of the install alone
 stage parity 150 $PY -m pytest tests/test_warp_sim.py -q --warp-device "$DEVICE" -p no:cacheprovider
 # shellcheck disable=SC2086
 stage bench_env 100 $PY experiments/bench_env.py --backend warp --device "$DEVICE" \

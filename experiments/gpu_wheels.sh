@@ -67,6 +67,9 @@ split -b "${PART_MIB}m" -d -a 1 "$OUT/wheels.tar" "$OUT/wheels.tar."
 for f in "$OUT"/wheels.tar.?; do
   n=$(( ${f##*.} + 1 )); mkdir -p "$OUT/part$n"; mv "$f" "$OUT/part$n/"
 done
+# the last part says how many there are and what the joined file must hash to
+( cd "$OUT" && sha256sum wheels.tar | cut -d' ' -f1 ) > "$OUT/part$n/wheels.sha256"
+ls -d "$OUT"/part* | wc -l > "$OUT/part$n/wheels.parts"
 rm "$OUT/wheels.tar"
 du -sh "$OUT"/all/* | sort -h
 du -sh "$OUT"/part* "$OUT/all"
