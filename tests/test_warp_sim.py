@@ -46,11 +46,16 @@ def device(request: pytest.FixtureRequest) -> str:
     return request.config.getoption("--warp-device")
 
 
-@pytest.fixture(scope="module")
-def scene() -> Scene:
-    cfg = compose_config("robot=h1", "trail=randommix", "trail.levels=1", "trail.variants=1")
+def scene_of(robot: str) -> Scene:
+    cfg = compose_config(f"robot={robot}", "trail=randommix", "trail.levels=1",
+                         "trail.variants=1")
     terrain = build_terrain_map(OmegaConf.to_object(cfg.trail), cfg.seed)
     return build_scene(OmegaConf.to_object(cfg.robot), terrain, cfg.sim.dt)
+
+
+@pytest.fixture(scope="module")
+def scene() -> Scene:
+    return scene_of("h1")
 
 
 def nominal() -> PhysicsDraw:
@@ -180,6 +185,20 @@ def test_reset_sensors_match_mj_forward(sim: WarpSim, scene: Scene) -> None:
         assert_sensors_close(scene, got[:, s], want)
     np.testing.assert_allclose(sim.qpos.cpu().numpy(), qpos, atol=1e-6)
     assert (sim.time.cpu() == 0).all()
+
+
+def test_g1_loads_and_matches_before_touchdown(device: str) -> None:
+    """G1 on the same ground: the sensors of its reset state, then 0.1 s of falling (its
+    touchdown is equivalent but not bitwise: MuJoCo Warp's contacts differ, see above)."""
+    g1 = scene_of("g1")
+    sim = WarpSim(g1.model, g1.robot.base_body, nominal(), N, SUBSTEPS, device=device)
+    qpos, ctrl = reset_all(sim, g1)
+    assert_sensors_close(g1, sim.sensordata[:, 0].cpu().numpy(),
+                         cpu_forward(g1.model, qpos, ctrl)[1])
+    state, _ = cpu_rollout([g1.model] * N, qpos, ctrl, 5 * SUBSTEPS)
+    got_qpos, _ = warp_run(sim, 5, ctrl)
+    np.testing.assert_allclose(got_qpos[:, -1, :3], state[:, -1, 1:4], atol=1e-4)
+    sim.close()
 
 
 def test_half_second_matches_rollout(sim: WarpSim, scene: Scene) -> None:
