@@ -151,10 +151,21 @@ class WarpSim:
         self.model_of_env = torch.zeros(num_envs, dtype=torch.long, device=self.device)
         self.set_models(torch.arange(num_envs, device=self.device),
                         torch.zeros_like(self.model_of_env))
-        self._graph = None
+        self._graph = self._capture() if self.use_graph else None
         with on_warp(self.wp_device):
+            mjw.reset_data(self.m, self.d)
             mjw.forward(self.m, self.d)
         self._record_sensors_all()
+
+    def _capture(self) -> wp.Graph:
+        """Record the substeps as one CUDA graph, after one plain run of them: that run
+        compiles and loads every kernel they launch, so none loads during the capture. The
+        throwaway state it leaves is reset by the caller."""
+        with on_warp(self.wp_device):
+            self._substeps()
+            with wp.ScopedCapture() as capture:
+                self._substeps()
+        return capture.graph
 
     # -- physics ---------------------------------------------------------------------------
 
@@ -175,13 +186,9 @@ class WarpSim:
         """Advance every world by ``substeps`` physics steps holding ``ctrl`` (N, nu)."""
         self._ctrl.copy_(torch.as_tensor(ctrl, dtype=self.dtype, device=self.device))
         with on_warp(self.wp_device):
-            if not self.use_graph:
+            if self._graph is None:
                 self._substeps()
             else:
-                if self._graph is None:
-                    with wp.ScopedCapture() as capture:
-                        self._substeps()
-                    self._graph = capture.graph
                 wp.capture_launch(self._graph)
         self._steps += 1
         if self.overflow_check_every and self._steps % self.overflow_check_every == 0:
