@@ -33,7 +33,7 @@ import warp as wp
 from legoh.envs.randomization import PhysicsDraw, build_model_pool
 from legoh.envs.sensors import WORLD_GROUPS, camera_ray_directions
 
-wp.config.quiet = True  # no line per compiled kernel module (MuJoCo Warp has hundreds)
+wp.config.log_level = wp.LOG_WARNING  # no line per kernel module (MuJoCo Warp has hundreds)
 
 # Default per-world capacities: a standing humanoid on height-field chunks makes about 8-20
 # contacts (4 corners per foot box, more on uneven ground); each frictional contact is up to
