@@ -72,7 +72,8 @@ def main(folder: Path) -> None:
         lines += ["", f"Chunk size ({chunks['meta']['num_envs']} worlds):", "",
                   "| chunk m | fields | steps/s | depth ms/frame |", "|---|---|---|---|"]
         for r in chunks["rows"]:
-            lines.append(f"| {r['chunk_m']:g} | {r['nhfield']} | {r['warp_steps_per_s']:.0f} "
+            name = "one field" if r["nhfield"] == 1 else f"{r['chunk_m']:g}"
+            lines.append(f"| {name} | {r['nhfield']} | {r['warp_steps_per_s']:.0f} "
                          f"| {r['warp_depth_s_per_frame'] * 1e3:.1f} |")
     if train:
         rates = [f for _, f in train]
