@@ -139,7 +139,8 @@ class WarpSim:
         self.qvel = wp.to_torch(self.d.qvel)
         self.time = wp.to_torch(self.d.time)
         self._ctrl = wp.to_torch(self.d.ctrl)
-        self._overflow = wp.to_torch(self.d.overflow)
+        self._overflow = wp.to_torch(self.d.overflow)  # per world, cleared by reset_data
+        self._overflow_seen = torch.zeros_like(self._overflow)  # kept across resets
         self.sensordata = wp.to_torch(self._sens).permute(1, 0, 2)
         self._fields = {k: wp.to_torch(getattr(self.m, k)) for k in tables}
         self._tables = {k: torch.as_tensor(v, dtype=self._fields[k].dtype, device=self.device)
@@ -203,6 +204,7 @@ class WarpSim:
             return
         mask = torch.zeros(self.num_envs, dtype=torch.bool, device=self.device)
         mask[ids] = True
+        self._overflow_seen |= self._overflow  # a reset clears the flags: keep them for the check
         with on_warp(self.wp_device):
             mjw.reset_data(self.m, self.d, reset=wp.from_torch(mask))
         as_t = lambda x: torch.as_tensor(x, dtype=self.dtype, device=self.device)  # noqa: E731
@@ -227,7 +229,7 @@ class WarpSim:
         """Warn (with the numbers) about worlds that overflowed their contact or constraint
         capacity since the last check, count them in ``overflow_events`` and clear the flags.
         Returns how many worlds overflowed. Syncs the device."""
-        flags = self._overflow.cpu().numpy()
+        flags = (self._overflow_seen | self._overflow).cpu().numpy()
         bad = np.flatnonzero(flags)
         if len(bad):
             kinds = sorted({f.name for f in mjw.OverflowType if f.value and not f.value & (
@@ -236,11 +238,12 @@ class WarpSim:
             nacon = int(self.d.nacon.numpy()[0])
             warnings.warn(
                 f"MuJoCo Warp overflow in {len(bad)}/{self.num_envs} worlds ({', '.join(kinds)}):"
-                f" contacts {nacon} of {self.nconmax * self.num_envs} (nconmax {self.nconmax} "
-                f"per world), most constraints in a world {nefc} (njmax {self.njmax}); raise "
-                "sim.nconmax / sim.njmax", RuntimeWarning, stacklevel=2)
+                f" contacts now {nacon} of {self.nconmax * self.num_envs} allocated (nconmax "
+                f"{self.nconmax} per world), most constraint rows in a world now {nefc} (njmax "
+                f"{self.njmax}); raise sim.nconmax / sim.njmax", RuntimeWarning, stacklevel=2)
             self.overflow_events += len(bad)
             self._overflow.zero_()
+            self._overflow_seen.zero_()
         return len(bad)
 
     # -- sensors ---------------------------------------------------------------------------
