@@ -8,16 +8,26 @@ For H1 and G1 on RandomMix level 2 and N in {16, 64, 256}:
   * depth cost: ray casting (default) vs MuJoCo's EGL renderer, per frame;
   * peers: gymnasium's Humanoid-v5 and torchrl's ``HumanoidEnv`` (MuJoCo C backend), one env.
 
-    python experiments/bench_env.py [--quick]
+With ``--backend warp`` (or ``both``: the CPU rows above, then these, in one run), MuJoCo
+Warp on ``--device`` for N in ``--sizes`` (default 1024, 4096, 8192 on a GPU):
+  * ceiling: ``WarpSim.step`` of the same scene (4 substeps, one CUDA graph), default pose;
+  * depth: one 32 x 24 frame for all N cameras by Warp's batched ray cast, and the policy
+    rate with a frame every 5 steps;
+  * HikingEnv on the Warp backend, without and with depth, where the env supports it
+    (``sim=warp``; n/a before the backend factory ``legoh.envs.physics`` exists).
 
-Writes experiments/results/bench_env.{json,md}. Absolute numbers depend on the machine;
-the ratios in the same run are the figures to read.
+    python experiments/bench_env.py [--quick] [--backend mujoco|warp|both] [--device cuda]
+                                    [--sizes 1024 4096 8192] [--results DIR]
+
+Writes experiments/results/bench_env.{json,md} (CPU) and bench_env_warp_<device>.{json,md}.
+Absolute numbers depend on the machine; the ratios in the same run are the figures to read.
 """
 
 from __future__ import annotations
 
 import argparse
 import functools
+import importlib.util
 import json
 import os
 import platform
@@ -25,12 +35,15 @@ import time
 from pathlib import Path
 
 os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco is imported: headless rendering
+# MuJoCo Warp's compiled kernels (--backend warp): the tests' cache, before warp starts
+os.environ.setdefault("WARP_CACHE_PATH", str(Path(__file__).resolve().parents[1] / ".warp_cache"))
 
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 from hydra import compose, initialize_config_dir  # noqa: E402
 from mujoco import rollout  # noqa: E402
+from omegaconf import OmegaConf  # noqa: E402
 
 from legoh.config import register_configs  # noqa: E402
 from legoh.envs.hiking_env import make_env  # noqa: E402
@@ -57,8 +70,6 @@ def env_rate(robot: str, n: int, depth: bool, steps: int, scene=None,
     if scene is None:
         env = make_env(cfg, num_envs=n)
     else:
-        from omegaconf import OmegaConf
-
         from legoh.envs.hiking_env import HikingEnv
         env_cfg = OmegaConf.to_object(cfg.env)
         env_cfg.num_envs = n
@@ -70,7 +81,7 @@ def env_rate(robot: str, n: int, depth: bool, steps: int, scene=None,
     for i in range(steps + 5):
         if i == 5:
             t0 = time.perf_counter()
-        td["action"] = torch.randn(n, env.num_actions, generator=gen) * 0.5
+        td["action"] = (torch.randn(n, env.num_actions, generator=gen) * 0.5).to(env.device)
         _, td = env.step_and_maybe_reset(td)
     rate = n * steps / (time.perf_counter() - t0)
     return rate, env
@@ -169,10 +180,101 @@ def torchrl_humanoid_rate(steps: int) -> float | None:
     return rate
 
 
+def warp_rows(args: argparse.Namespace) -> list[dict]:
+    """MuJoCo Warp: physics ceiling, depth cost and (where supported) HikingEnv rates."""
+    from bench_warp_chunks import warp_physics
+
+    from legoh.envs.scene import build_scene
+    from legoh.envs.terrain import build_terrain_map
+
+    env_ready = importlib.util.find_spec("legoh.envs.physics") is not None
+    rows = []
+    for robot in args.robots:
+        cfg = compose_cfg(robot, False, ["sim=warp"])
+        scene = build_scene(OmegaConf.to_object(cfg.robot),
+                            build_terrain_map(OmegaConf.to_object(cfg.trail), cfg.seed),
+                            cfg.sim.dt, hfield_chunk=cfg.sim.hfield_chunk)
+        for n in args.sizes:
+            w = warp_physics(scene, n, args.warp_steps, args.device, nconmax=cfg.sim.nconmax,
+                             njmax=cfg.sim.njmax, graph=cfg.sim.graph)
+            step_s = 1.0 / w["steps_per_s"]  # per world per policy step
+            row = {"robot": robot, "num_envs": n, "device": args.device,
+                   "chunk_m": cfg.sim.hfield_chunk, "setup_s": w["setup_s"],
+                   "ceiling_steps_per_s": w["steps_per_s"],
+                   "depth_s_per_frame": w["depth_s_per_frame"],
+                   "ceiling_depth_10hz_steps_per_s": 1.0 / (
+                       step_s + w["depth_s_per_frame"] / n / 5),
+                   "overflow_worlds": w["overflow_worlds"], "env_steps_per_s": None,
+                   "env_depth_steps_per_s": None}
+            if env_ready:
+                extra = ["sim=warp", f"sim.warp_device={args.device}"]
+                row["env_steps_per_s"] = env_rate(robot, n, False, args.warp_steps,
+                                                  extra=extra)[0]
+                row["env_depth_steps_per_s"] = env_rate(robot, n, True, args.warp_steps,
+                                                        extra=extra)[0]
+            rows.append(row)
+
+            def fmt(x: float | None) -> str:
+                return "n/a" if x is None else f"{x:.0f}"
+
+            print(f"warp {robot} N={n:5d}: ceiling {row['ceiling_steps_per_s']:9.0f}  "
+                  f"+depth@10Hz {row['ceiling_depth_10hz_steps_per_s']:9.0f}  env "
+                  f"{fmt(row['env_steps_per_s'])}  env+depth {fmt(row['env_depth_steps_per_s'])}"
+                  f"  (setup {row['setup_s']:.1f} s, overflow worlds {row['overflow_worlds']})")
+    return rows
+
+
+def write_warp_results(rows: list[dict], args: argparse.Namespace) -> None:
+    args.results.mkdir(parents=True, exist_ok=True)
+    stem = f"bench_env_warp_{args.device.replace(':', '')}"
+    machine = {"cpus": os.cpu_count(), "platform": platform.platform(),
+               "mujoco": mujoco.__version__, "torch": torch.__version__}
+    if args.device.startswith("cuda"):
+        machine["gpu"] = torch.cuda.get_device_name()
+    (args.results / f"{stem}.json").write_text(json.dumps({"machine": machine, "rows": rows},
+                                                          indent=2))
+
+    def fmt(x: float | None) -> str:
+        return "n/a" if x is None else f"{x:.0f}"
+
+    lines = ["# MuJoCo Warp speed (policy steps/s, 50 Hz policy, 4 substeps)", "",
+             f"Device `{args.device}` ({machine.get('gpu', 'CPU')}), RandomMix level map, "
+             "default pose. Ceiling: `WarpSim.step` alone; depth: one 32x24 ray-cast frame "
+             "per world every 5 policy steps; env: HikingEnv with `sim=warp` (n/a: not yet "
+             "on this backend).", "",
+             "| robot | N | chunk m | ceiling | ceiling + depth | env | env + depth | "
+             "depth ms/frame (all N) | overflow worlds |", "|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['robot']} | {r['num_envs']} | {r['chunk_m']:g} | "
+                     f"{r['ceiling_steps_per_s']:.0f} | {r['ceiling_depth_10hz_steps_per_s']:.0f}"
+                     f" | {fmt(r['env_steps_per_s'])} | {fmt(r['env_depth_steps_per_s'])} | "
+                     f"{r['depth_s_per_frame'] * 1e3:.1f} | {r['overflow_worlds']} |")
+    (args.results / f"{stem}.md").write_text("\n".join(lines) + "\n")
+    print(f"wrote {args.results / stem}.json and .md")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="N=16 only, fewer steps")
+    parser.add_argument("--backend", choices=["mujoco", "warp", "both"], default="mujoco")
+    parser.add_argument("--device", default="cuda" if torch.cuda.is_available() else "cpu",
+                        help="Warp device: cuda | cuda:N | cpu")
+    parser.add_argument("--sizes", type=int, nargs="+", default=None,
+                        help="Warp world counts (default 1024 4096 8192; 8 on the CPU)")
+    parser.add_argument("--robots", nargs="+", default=["h1"], help="Warp rows' robots")
+    parser.add_argument("--warp-steps", type=int, default=50, help="timed Warp policy steps")
+    parser.add_argument("--results", type=Path, default=RESULTS)
     args = parser.parse_args()
+    if args.sizes is None:
+        args.sizes = [1024, 4096, 8192] if args.device.startswith("cuda") else [8]
+    if args.backend in ("mujoco", "both"):
+        cpu_benchmark(args)
+    if args.backend in ("warp", "both"):
+        write_warp_results(warp_rows(args), args)
+
+
+def cpu_benchmark(args: argparse.Namespace) -> None:
+    """The CPU rows, the depth costs and the peers (bench_env.{json,md})."""
     sizes = [16] if args.quick else [16, 64, 256]
     rows = []
     for robot in ["h1", "g1"]:
@@ -217,13 +319,13 @@ def main() -> None:
     result = {"machine": {"cpus": os.cpu_count(), "platform": platform.platform(),
                           "mujoco": mujoco.__version__, "torch": torch.__version__},
               "level": LEVEL, "trail": "randommix", "rows": rows, "peers": peers}
-    write_results(result, quick=args.quick)
+    write_results(result, quick=args.quick, results=args.results)
 
 
-def write_results(result: dict, quick: bool) -> None:
-    RESULTS.mkdir(parents=True, exist_ok=True)
+def write_results(result: dict, quick: bool, results: Path = RESULTS) -> None:
+    results.mkdir(parents=True, exist_ok=True)
     stem = "bench_env_quick" if quick else "bench_env"
-    (RESULTS / f"{stem}.json").write_text(json.dumps(result, indent=2))
+    (results / f"{stem}.json").write_text(json.dumps(result, indent=2))
     lines = [
         "# HikingEnv speed (policy steps/s, 50 Hz policy, 4 substeps)", "",
         f"RandomMix level {result['level']}, {result['machine']['cpus']} CPUs, "
@@ -259,8 +361,8 @@ def write_results(result: dict, quick: bool) -> None:
               f"* gymnasium Humanoid-v5: {fmt(p['gymnasium_humanoid_v5_steps_per_s'])} steps/s",
               f"* torchrl HumanoidEnv (MuJoCo C backend): "
               f"{fmt(p['torchrl_humanoid_c_steps_per_s'])} steps/s", ""]
-    (RESULTS / f"{stem}.md").write_text("\n".join(lines))
-    print(f"wrote {RESULTS / stem}.json and .md")
+    (results / f"{stem}.md").write_text("\n".join(lines))
+    print(f"wrote {results / stem}.json and .md")
 
 
 if __name__ == "__main__":

@@ -141,3 +141,13 @@ def test_every_numeric_setting_has_a_range() -> None:
         plain = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
         unmatched = [k for k, _ in numeric_leaves(plain) if rule_for(k) is None]
         assert not unmatched, f"{override}: no range for {unmatched}"
+
+
+def test_sim_backend_is_a_group_and_a_key() -> None:
+    """sim=warp picks MuJoCo Warp with its own defaults; sim.backend=warp flips the key alone."""
+    assert compose_config().sim.backend == "mujoco"
+    warp = compose_config("sim=warp").sim
+    assert (warp.backend, warp.hfield_chunk, warp.graph) == ("warp", 8.0, True)
+    assert compose_config("sim.backend=warp").sim.hfield_chunk == 4.0
+    with pytest.raises(ValueError, match=r"sim\.nconmax"):
+        validate(compose_config("sim=warp", "sim.nconmax=0"))

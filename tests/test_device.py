@@ -9,7 +9,8 @@ from pathlib import Path
 import pytest
 import torch
 
-from legoh.train.collect import ENV_DEVICE, policy_device, worker_policy_device
+from legoh.envs.physics import physics_device
+from legoh.train.collect import policy_device, worker_policy_device
 from legoh.train.oracle import train_oracle
 from tests.conftest import compose_config
 from tests.test_train_oracle import TINY
@@ -59,7 +60,8 @@ def test_workers_follow_the_learner_unless_told(monkeypatch) -> None:
                                 ) == torch.device("cpu")
     ray_cfg = compose_config("device=cuda", "collector=ray")
     assert worker_policy_device(ray_cfg) == torch.device("cpu")  # Ray workers: CPU default
-    assert ENV_DEVICE == torch.device("cpu")  # MuJoCo
+    assert physics_device(cfg.sim) == "cpu"  # MuJoCo steps on the CPU, whatever the learner
+    assert physics_device(compose_config("sim=warp").sim) == "cuda"  # the GPU torch sees
 
 
 def test_training_runs_through_the_device_switch(tmp_path: Path) -> None:

@@ -44,7 +44,14 @@ class SimConfig:
     decimation: int = 4  # physics steps per policy step
     threads: int = 0  # worker threads for batched stepping; 0: one per CPU core
     hfield_chunk: float = 4.0  # m, side of the height-field chunks (fast ray casts, docs/env.md)
-    backend: str = "mujoco"  # physics: mujoco (CPU, mujoco.rollout) | warp (MuJoCo Warp, GPU)
+    backend: str = "mujoco"  # physics: mujoco (CPU, mujoco.rollout) | warp (MuJoCo Warp)
+    # MuJoCo Warp only (conf/sim/warp.yaml; docs/scaling.md)
+    # auto: cuda when torch sees a GPU, else Warp's CPU device (slow: for tests and trying it)
+    warp_device: str = "auto"  # auto | cuda | cuda:N | cpu
+    nconmax: int = 64  # contacts allocated per world; overflow is reported, raise it then
+    njmax: int = 320  # constraint rows allocated per world (4 per frictional contact)
+    graph: bool = True  # capture the substeps as one CUDA graph (GPU only)
+    overflow_check_every: int = 50  # policy steps between overflow checks (each syncs); 0: off
 
 
 @dataclass
@@ -80,6 +87,7 @@ def register_configs() -> None:
     cs.store(group="schema/algo", name="unified", node=UnifiedConfig)
     cs.store(group="schema/eval", name="eval", node=EvalConfig)
     cs.store(group="schema/collector", name="sync", node=CollectorConfig)
+    cs.store(group="schema/sim", name="sim", node=SimConfig)
     cs.store(group="schema/collector", name="ray", node=RayCollectorConfig)
 
 

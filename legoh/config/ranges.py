@@ -58,7 +58,8 @@ RANGES: list[tuple[str, Range]] = [
     # top level
     ("seed", NON_NEGATIVE), ("stand_seconds", POSITIVE),
     ("sim.dt", POSITIVE), ("sim.decimation", COUNT), ("sim.threads", NON_NEGATIVE),
-    ("sim.hfield_chunk", POSITIVE),
+    ("sim.hfield_chunk", POSITIVE), ("sim.nconmax", COUNT), ("sim.njmax", COUNT),
+    ("sim.overflow_check_every", NON_NEGATIVE),
     # robot: gains and limits from the MJCF side; the pose and Table 6 weights are signed
     ("robot.kp.*", NON_NEGATIVE), ("robot.kd.*", NON_NEGATIVE),
     ("robot.torque_limit.*", POSITIVE), ("robot.default_pose.*", ANY),

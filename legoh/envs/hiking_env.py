@@ -26,7 +26,7 @@ from legoh.config import EnvConfig, RobotConfig, SimConfig, TrailConfig
 from legoh.envs.mdp import events, observations, rewards
 from legoh.envs.mdp.state import AirTime, Goals, Grid, Memory, TrailTable, as_index, compute_state
 from legoh.envs.mdp.terminations import TERMINATIONS
-from legoh.envs.physics import DEFAULT_DEVICE, make_physics
+from legoh.envs.physics import make_physics, physics_device, sim_options
 from legoh.envs.randomization import draw_physics
 from legoh.envs.scene import Scene, build_scene, feet_rest_height
 from legoh.envs.terrain import build_terrain_map
@@ -53,7 +53,7 @@ class HikingEnv(EnvBase):
                                     np.random.default_rng(seed + 1))
         self.sim = make_physics(sim.backend, self.scene.model, self.robot.base_body,
                                 self.physics, env.num_envs, sim.decimation, sim.threads,
-                                DEFAULT_DEVICE.get(sim.backend, "cpu"))
+                                physics_device(sim), **sim_options(sim))
         super().__init__(device=self.sim.device, batch_size=torch.Size([env.num_envs]))
         self.cfg, self.sim_cfg, self.evaluation = env, sim, evaluation
         self.num_envs, self.dtype = env.num_envs, self.sim.dtype

@@ -20,17 +20,44 @@ MuJoCo Warp on a GPU, the ``gpu`` extra).
 
 from __future__ import annotations
 
+import warnings
+
 import mujoco
+import torch
 
 from legoh.envs.randomization import PhysicsDraw, build_model_pool
 
 BACKENDS = ("mujoco", "warp")
-DEFAULT_DEVICE = {"mujoco": "cpu", "warp": "cuda"}  # where each backend keeps its state
+
+
+def physics_device(sim) -> str:
+    """Where ``sim`` (a SimConfig) keeps its state: the CPU for mujoco; for warp
+    ``sim.warp_device``, ``auto`` being the GPU when torch sees one, else Warp's CPU device."""
+    if sim.backend != "warp":
+        return "cpu"
+    if sim.warp_device == "auto":
+        if torch.cuda.is_available():
+            return "cuda"
+        warnings.warn("sim.backend=warp: torch sees no CUDA GPU, so MuJoCo Warp runs on its CPU "
+                      "device (about 20x slower than sim.backend=mujoco; docs/scaling.md)",
+                      stacklevel=2)
+        return "cpu"
+    return str(sim.warp_device)
+
+
+def sim_options(sim) -> dict:
+    """The backend's own settings from ``sim`` (a SimConfig): MuJoCo Warp's buffer sizes,
+    graph capture and overflow checks; none for mujoco."""
+    if sim.backend != "warp":
+        return {}
+    return {"nconmax": sim.nconmax, "njmax": sim.njmax, "graph": sim.graph,
+            "overflow_check_every": sim.overflow_check_every}
 
 
 def make_physics(backend: str, model: mujoco.MjModel, base_body: str, draws: PhysicsDraw,
-                 num_envs: int, substeps: int, threads: int, device: str):
-    """The physics of ``num_envs`` envs on ``backend`` (see the module docstring)."""
+                 num_envs: int, substeps: int, threads: int, device: str, **options):
+    """The physics of ``num_envs`` envs on ``backend`` (see the module docstring);
+    ``options``: the backend's own settings (:func:`sim_options`)."""
     if backend == "mujoco":
         from legoh.envs.batched_sim import BatchedSim
 
@@ -43,5 +70,5 @@ def make_physics(backend: str, model: mujoco.MjModel, base_body: str, draws: Phy
             raise ImportError(
                 f"sim.backend=warp needs MuJoCo Warp ({err}); install the `gpu` extra: "
                 "pip install -e '.[gpu]'") from err
-        return WarpSim(model, base_body, draws, num_envs, substeps, threads, device)
+        return WarpSim(model, base_body, draws, num_envs, substeps, threads, device, **options)
     raise ValueError(f"sim.backend={backend!r}: known backends {list(BACKENDS)}")

@@ -18,8 +18,8 @@ from torchrl.collectors import BaseCollector, Collector, MultiAsyncCollector, Mu
 from torchrl.envs import EnvBase
 
 from legoh import keys
+from legoh.envs.physics import physics_device
 
-ENV_DEVICE = torch.device("cpu")  # MuJoCo steps on the CPU, whatever the learner uses
 GIB = 1024**3
 
 
@@ -110,7 +110,8 @@ def sync_weights(collector: BaseCollector) -> None:
 
 def _make_local(cfg, make_env_fn, policy, frames_per_batch, total_frames, env, per_worker
                 ) -> BaseCollector:
-    devices = {"env_device": ENV_DEVICE, "policy_device": worker_policy_device(cfg)}
+    devices = {"env_device": torch.device(physics_device(cfg.sim)),
+               "policy_device": worker_policy_device(cfg)}
     if cfg.collector.overlap:
         # one worker process collects batch k+1 with the weights of update k-1 while the
         # learner runs update k (torchrl's MultiAsyncCollector): the envs and the update
@@ -160,8 +161,8 @@ def _make_ray(cfg, make_env_fn, policy, frames_per_batch, total_frames, per_work
     collector = RayCollector(
         _worker_factories(make_env_fn, per_worker, ray_cfg.workers, env), policy,
         frames_per_batch=frames_per_batch, total_frames=total_frames,
-        env_device=ENV_DEVICE, policy_device=worker_policy_device(cfg),
-        storing_device=ENV_DEVICE,
+        env_device=torch.device(physics_device(cfg.sim)), policy_device=worker_policy_device(cfg),
+        storing_device=torch.device("cpu"),
         collector_kwargs={"auto_register_policy_transforms": False},
         sync=True,  # one batch from every worker per iteration, stacked
         ray_init_config=init, remote_configs=remote)

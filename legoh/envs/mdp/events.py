@@ -18,8 +18,11 @@ SPAWN_LIFT = 0.02  # m above the standing height: no initial ground penetration
 
 
 def uniform(env, low: float, high: float, *shape: int) -> torch.Tensor:
-    """U(low, high) samples of ``shape`` from the env's generator, physics dtype."""
-    u = torch.rand(*shape, generator=env.gen, device=env.device, dtype=env.dtype)
+    """U(low, high) samples of ``shape`` from the env's generator, physics dtype. Drawn in
+    float64 whatever the backend: float32 draws of one generator state differ, and the same
+    seed must give the same episode on both backends."""
+    u = torch.rand(*shape, generator=env.gen, device=env.device, dtype=torch.float64
+                   ).to(env.dtype)
     return low + (high - low) * u
 
 
