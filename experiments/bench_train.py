@@ -113,9 +113,13 @@ def main() -> None:  # noqa: PLR0915 - one measurement table after another
     parser.add_argument("--sizes", type=int, nargs="+", default=[64, 256, 512, 1024])
     parser.add_argument("--iterations", type=int, default=3)
     parser.add_argument("--note", default="", help="a line on the conditions of this run")
+    parser.add_argument("--fast-extra", nargs="*", default=[],
+                        help="more overrides for the fast loop, e.g. algo.epochs=2")
+    parser.add_argument("--tag", default="", help="results as bench_train_<tag>.{md,json}")
+    parser.add_argument("--no-variants", action="store_true", help="skip the update variants")
     args = parser.parse_args()
     torch.set_num_threads(1)
-    fast = ["algo.update_precision=bfloat16", "collector.overlap=true"]
+    fast = ["algo.update_precision=bfloat16", "collector.overlap=true", *args.fast_extra]
     rows = []
     for n in args.sizes:
         cfg = config(n)
@@ -136,7 +140,7 @@ def main() -> None:  # noqa: PLR0915 - one measurement table after another
         print(json.dumps(row), flush=True)
 
     n = args.sizes[-1]
-    variants = {"5 x 4, float32 (default)": [],
+    variants = {} if args.no_variants else {"5 x 4, float32 (default)": [],
                 "5 x 4, bfloat16": ["algo.update_precision=bfloat16"],
                 "5 x 2": ["algo.minibatches=2"],
                 "2 x 4": ["algo.epochs=2"],
@@ -152,12 +156,13 @@ def main() -> None:  # noqa: PLR0915 - one measurement table after another
                          "loop_estimate": 1 / (1 / col + 1 / upd)})
         print(json.dumps(var_rows[-1]), flush=True)
 
-    (OUT / "bench_train.json").write_text(json.dumps(
+    stem = f"bench_train_{args.tag}" if args.tag else "bench_train"
+    (OUT / f"{stem}.json").write_text(json.dumps(
         {"sizes": rows, "update_variants_at_N": n, "variants": var_rows,
          "torch_threads": 1, "cpus": os.cpu_count(), "note": args.note}, indent=2))
     lines = ["# Oracle training loop vs its env (frames/s, one run, 1 torch thread, "
              f"{os.cpu_count()} CPUs)", "", *([args.note, ""] if args.note else []),
-             "fast = `algo.update_precision=bfloat16 collector.overlap=true`; "
+             f"fast = `{' '.join(fast)}`; "
              "fast, 1 thread: the same with `sim.threads=1`.", "",
              "| N | bare env | collection | update | update bf16 | loop | loop / bare | "
              "fast | fast / bare | fast, 1 thread | ... / bare | update share |",
@@ -167,12 +172,13 @@ def main() -> None:  # noqa: PLR0915 - one measurement table after another
               f"{r['loop_fast']:.0f} | {r['fast_over_bare']:.2f} | "
               f"{r['loop_fast_1thread']:.0f} | {r['fast_1thread_over_bare']:.2f} | "
               f"{r['update_share']:.0%} |" for r in rows]
-    lines += ["", f"Update variants at N = {n} (epochs x minibatches; the loop estimate is "
-              "collection and update in series)", "",
-              "| variant | collection | update | loop estimate |", "|---|---|---|---|"]
+    if var_rows:
+        lines += ["", f"Update variants at N = {n} (epochs x minibatches; the loop estimate "
+                  "is collection and update in series)", "",
+                  "| variant | collection | update | loop estimate |", "|---|---|---|---|"]
     lines += [f"| {r['variant']} | {r['collection']:.0f} | {r['update']:.0f} | "
               f"{r['loop_estimate']:.0f} |" for r in var_rows]
-    (OUT / "bench_train.md").write_text("\n".join(lines) + "\n")
+    (OUT / f"{stem}.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 
 
