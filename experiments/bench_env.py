@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import argparse
 import functools
-import importlib.util
 import json
 import os
 import platform
@@ -187,7 +186,6 @@ def warp_rows(args: argparse.Namespace) -> list[dict]:
     from legoh.envs.scene import build_scene
     from legoh.envs.terrain import build_terrain_map
 
-    env_ready = importlib.util.find_spec("legoh.envs.physics") is not None
     rows = []
     for robot in args.robots:
         cfg = compose_cfg(robot, False, ["sim=warp"])
@@ -206,12 +204,10 @@ def warp_rows(args: argparse.Namespace) -> list[dict]:
                        step_s + w["depth_s_per_frame"] / n / 5),
                    "overflow_worlds": w["overflow_worlds"], "env_steps_per_s": None,
                    "env_depth_steps_per_s": None}
-            if env_ready:
-                extra = ["sim=warp", f"sim.warp_device={args.device}"]
-                row["env_steps_per_s"] = env_rate(robot, n, False, args.warp_steps,
-                                                  extra=extra)[0]
-                row["env_depth_steps_per_s"] = env_rate(robot, n, True, args.warp_steps,
-                                                        extra=extra)[0]
+            extra = ["sim=warp", f"sim.warp_device={args.device}"]
+            row["env_steps_per_s"] = env_rate(robot, n, False, args.warp_steps, extra=extra)[0]
+            row["env_depth_steps_per_s"] = env_rate(robot, n, True, args.warp_steps,
+                                                    extra=extra)[0]
             rows.append(row)
 
             def fmt(x: float | None) -> str:
@@ -240,8 +236,8 @@ def write_warp_results(rows: list[dict], args: argparse.Namespace) -> None:
     lines = ["# MuJoCo Warp speed (policy steps/s, 50 Hz policy, 4 substeps)", "",
              f"Device `{args.device}` ({machine.get('gpu', 'CPU')}), RandomMix level map, "
              "default pose. Ceiling: `WarpSim.step` alone; depth: one 32x24 ray-cast frame "
-             "per world every 5 policy steps; env: HikingEnv with `sim=warp` (n/a: not yet "
-             "on this backend).", "",
+             "per world every 5 policy steps; env: HikingEnv with `sim=warp` (the same "
+             "term tables as the CPU rows, in the same run with `--backend both`).", "",
              "| robot | N | chunk m | ceiling | ceiling + depth | env | env + depth | "
              "depth ms/frame (all N) | overflow worlds |", "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
