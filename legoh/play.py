@@ -139,7 +139,7 @@ def render_policy_video(cfg: DictConfig, actor, out_path: str | Path,
     try:
         env.level[:] = level
         td = env.reset()
-        start, tile = td[keys.BASE_POS].numpy().copy(), td[keys.TILE].numpy().copy()
+        start, tile = td[keys.BASE_POS].cpu().numpy().copy(), td[keys.TILE].cpu().numpy().copy()
         end, fell = start.copy(), np.zeros(robots, dtype=bool)
         ended = np.zeros(robots, dtype=bool)
         camera = FollowCamera(env.scene.model, env.robot.base_body,
@@ -151,10 +151,10 @@ def render_policy_video(cfg: DictConfig, actor, out_path: str | Path,
             for step in range(env.max_steps):
                 td = env.step(actor(td))  # no auto-reset: each robot stays where it ended
                 nxt = td["next"]
-                pos = nxt[keys.BASE_POS].numpy()
-                done = nxt[keys.DONE].reshape(robots).numpy() & ~ended
+                pos = nxt[keys.BASE_POS].cpu().numpy()
+                done = nxt[keys.DONE].reshape(robots).cpu().numpy() & ~ended
                 end[done] = pos[done]
-                fell[done] = (nxt[keys.FELL].numpy() & ~nxt[keys.REACHED].numpy())[done]
+                fell[done] = (nxt[keys.FELL].cpu().numpy() & ~nxt[keys.REACHED].cpu().numpy())[done]
                 if not ended[0] and ((step + 1) % RENDER_EVERY == 0 or done[0]):
                     frames.append(camera.frame(env.sim.qpos[0].cpu().numpy()))
                 ended |= done

@@ -103,9 +103,9 @@ def rollout_level(env, actor, level: int) -> LevelRecord:
     n = env.num_envs
     env.level[:] = level
     td = env.reset()
-    start = td[keys.BASE_POS].numpy().copy()
-    tile = td[keys.TILE].numpy().copy()
-    count = td[keys.WAYPOINT_COUNT].numpy().copy()
+    start = td[keys.BASE_POS].cpu().numpy().copy()
+    tile = td[keys.TILE].cpu().numpy().copy()
+    count = td[keys.WAYPOINT_COUNT].cpu().numpy().copy()
     signals = {s: [] for s in (*SIGNALS, "done")}
     pos = []
     ended = np.zeros(n, dtype=bool)
@@ -114,10 +114,10 @@ def rollout_level(env, actor, level: int) -> LevelRecord:
             td, root = env.step_and_maybe_reset(actor(td))
             nxt = td["next"]
             for s in SIGNALS:
-                signals[s].append(nxt[keys.INFO, s].numpy().copy())
-            done = nxt[keys.DONE].reshape(n).numpy().copy()
+                signals[s].append(nxt[keys.INFO, s].cpu().numpy().copy())
+            done = nxt[keys.DONE].reshape(n).cpu().numpy().copy()
             signals["done"].append(done)
-            pos.append(nxt[keys.BASE_POS].numpy().copy())
+            pos.append(nxt[keys.BASE_POS].cpu().numpy().copy())
             ended |= done
             if ended.all():
                 break
