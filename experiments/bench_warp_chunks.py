@@ -34,9 +34,11 @@ from omegaconf import OmegaConf  # noqa: E402
 
 from legoh.config import register_configs  # noqa: E402
 from legoh.envs.randomization import PhysicsDraw  # noqa: E402
-from legoh.envs.robots import CAMERA_NAME  # noqa: E402
 from legoh.envs.scene import Scene, build_scene  # noqa: E402
-from legoh.envs.sensors import DepthRaycaster  # noqa: E402
+from legoh.envs.sensors import (
+    DepthRaycaster,  # noqa: E402
+    camera_poses,  # noqa: E402
+)
 from legoh.envs.terrain import build_terrain_map  # noqa: E402
 from legoh.envs.warp_sim import WarpSim  # noqa: E402
 
@@ -56,18 +58,6 @@ def spawn(scene: Scene, n: int) -> tuple[np.ndarray, np.ndarray]:
     qpos[:, 2] = scene.terrain.height_at(starts[:, :2]) + scene.stand_height + 0.02
     qpos[:, scene.qpos_adr] = scene.robot.default_pose
     return qpos, np.tile(scene.robot.default_pose, (n, 1))
-
-
-def camera_poses(scene: Scene, qpos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    data, cam = mujoco.MjData(scene.model), scene.model.camera(CAMERA_NAME).id
-    pos, mat = [], []
-    for q in qpos:
-        data.qpos[:] = q
-        mujoco.mj_kinematics(scene.model, data)
-        mujoco.mj_camlight(scene.model, data)
-        pos.append(data.cam_xpos[cam].copy())
-        mat.append(data.cam_xmat[cam].reshape(3, 3).copy())
-    return np.array(pos), np.array(mat)
 
 
 def timed(fn, repeats: int) -> float:
@@ -102,7 +92,7 @@ def warp_physics(scene: Scene, n: int, steps: int, device: str, **warp_options: 
     setup_s = time.perf_counter() - t0
     step_s = timed(step, steps)
     cam = sim.make_depth_camera(FOVY, WIDTH, HEIGHT, FAR)
-    pos, mat = (torch.as_tensor(x) for x in camera_poses(scene, qpos))
+    pos, mat = (torch.as_tensor(x) for x in camera_poses(scene.model, qpos))
 
     def render() -> None:
         cam.render(pos, mat)
@@ -132,7 +122,7 @@ def cpu_backend(scene: Scene, n: int, steps: int) -> dict:
     """The CPU backend on the same worlds: mujoco.rollout steps/s, DepthRaycaster frames."""
     model = scene.model
     qpos, ctrl = spawn(scene, n)
-    cam_pos, cam_mat = camera_poses(scene, qpos)
+    cam_pos, cam_mat = camera_poses(scene.model, qpos)
     pool = rollout.Rollout(nthread=os.cpu_count() or 1)
     datas = [mujoco.MjData(model) for _ in range(os.cpu_count() or 1)]
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS

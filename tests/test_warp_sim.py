@@ -24,7 +24,7 @@ from omegaconf import OmegaConf
 from legoh import keys
 from legoh.envs.randomization import PhysicsDraw, build_model_pool
 from legoh.envs.scene import Scene, build_scene
-from legoh.envs.sensors import DepthRaycaster
+from legoh.envs.sensors import DepthRaycaster, camera_poses
 from legoh.envs.terrain import build_terrain_map
 from tests.conftest import compose_config
 
@@ -218,22 +218,16 @@ def test_half_second_matches_rollout(sim: WarpSim, scene: Scene) -> None:
 
 
 def test_depth_matches_ray_caster(sim: WarpSim, scene: Scene) -> None:
-    cam = scene.model.camera("depth_camera").id
     qpos, ctrl = spawn(scene)
-    data = mujoco.MjData(scene.model)
-    poses, mats = [], []
-    for q in qpos:
-        data.qpos[:] = q
-        mujoco.mj_kinematics(scene.model, data)
-        mujoco.mj_camlight(scene.model, data)
-        poses.append(data.cam_xpos[cam].copy())
-        mats.append(data.cam_xmat[cam].reshape(3, 3).copy())
-    poses, mats = np.array(poses), np.array(mats)
+    poses, mats = camera_poses(scene.model, qpos)
     # look down at the ground and ahead at the horizon too (misses clip to far)
     tilt = np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]], dtype=float)
     poses, mats = np.concatenate([poses, poses]), np.concatenate([mats, mats @ tilt])
     args = (87.0, 32, 24, 5.0)
     cpu = DepthRaycaster(scene.model, *args, threads=1)
+    data = mujoco.MjData(scene.model)  # the world as the last robot's kinematics left it
+    data.qpos[:] = qpos[-1]
+    mujoco.mj_kinematics(scene.model, data)
     want = cpu.render(data, poses, mats)
     got = sim.make_depth_camera(*args).render(torch.as_tensor(poses), torch.as_tensor(mats))
     assert got.shape == (2 * N, 24, 32)

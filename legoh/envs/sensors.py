@@ -12,7 +12,7 @@ from concurrent.futures import ThreadPoolExecutor
 import mujoco
 import numpy as np
 
-from legoh.envs.robots import ROBOT_GEOM_GROUP
+from legoh.envs.robots import CAMERA_NAME, ROBOT_GEOM_GROUP
 
 # Ray casts see every geom group but visual meshes (2) and the robot's own colliders.
 WORLD_GROUPS = np.array([g not in (2, ROBOT_GEOM_GROUP) for g in range(6)], dtype=np.uint8)
@@ -32,6 +32,20 @@ def camera_ray_directions(fovy_deg: float, width: int, height: int) -> np.ndarra
     y = np.broadcast_to(v[:, None] * half_h, (height, width))
     dirs = np.stack([x, y, -np.ones_like(x)], axis=-1)
     return dirs / np.linalg.norm(dirs, axis=-1, keepdims=True)
+
+
+def camera_poses(model: mujoco.MjModel, qpos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """World position (k, 3) and rotation (k, 3, 3) of the depth camera at each of the k
+    poses ``qpos`` (k, nq): kinematics only, for tests and benchmarks of the ray casters."""
+    data, cam = mujoco.MjData(model), model.camera(CAMERA_NAME).id
+    pos, mat = [], []
+    for q in qpos:
+        data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_camlight(model, data)
+        pos.append(data.cam_xpos[cam].copy())
+        mat.append(data.cam_xmat[cam].reshape(3, 3).copy())
+    return np.array(pos), np.array(mat)
 
 
 class DepthRaycaster:
