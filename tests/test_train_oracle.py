@@ -170,6 +170,35 @@ def _fixed_batch(*overrides: str):
     return cfg, actor, loss, batch.reshape(-1)
 
 
+def test_one_pass_gae_equals_torchrls_two_pass_gae() -> None:
+    # The critic runs once on obs; next values are obs values shifted by a step, recomputed
+    # where the next obs is not the following obs (episode ends, the batch's last step).
+    # Episodes of 0.2 s end inside the 16-step rollout, so the recomputed rows are exercised.
+    from torchrl.objectives.value import GAE
+
+    cfg = compose_config(*TINY, "env.episode_length_s=0.2")
+    env = make_env(cfg, num_envs=4)
+    torch.manual_seed(0)
+    _, actor, critic, _ = build_oracle(env, cfg)
+    _, gae = make_ppo(actor, critic, cfg.algo)
+    with torch.no_grad():
+        batch = env.rollout(16, actor, break_when_any_done=False)
+    env.close()
+    done = batch["next", "done"].squeeze(-1)
+    assert done[:, :-1].any()  # some episode ends mid-batch
+    two_pass = GAE(gamma=cfg.algo.gamma, lmbda=cfg.algo.gae_lambda, value_network=critic,
+                   average_gae=False)
+    expected = batch.clone()
+    with torch.no_grad():
+        two_pass(expected)
+    got = gae(batch.clone())
+    for key in ("advantage", "value_target", "state_value", ("next", "state_value")):
+        torch.testing.assert_close(got[key], expected[key], rtol=1e-5, atol=1e-6)
+    # a next value read from obs[t + 1] at an episode end would differ
+    shifted = expected["state_value"][:, 1:][done[:, :-1]]
+    assert not torch.allclose(shifted, expected["next", "state_value"][:, :-1][done[:, :-1]])
+
+
 def test_exact_kl_reads_the_losss_own_forward_pass() -> None:
     # The KL that steers the learning rate comes from the distribution the loss computed, not
     # a second actor forward: it must equal the KL of a fresh forward on the same minibatch.

@@ -34,6 +34,9 @@ class OracleConfig:
     # None: a linear action mean (rsl_rl, mjlab); a number B: the paper's B * tanh (EP: 4.8)
     tanh_bound: float | None = None
     max_grad_norm: float = 1.0
+    # the critic's hidden sizes (ELU). The paper gives it the actor's 512-256-128; a
+    # 256-128-64 critic makes the update ~1/3 cheaper (docs/oracle.md, bench_train.md)
+    critic_hidden: list[int] = field(default_factory=lambda: [512, 256, 128])
     update_precision: Precision = Precision.float32  # bfloat16: autocast, objectives/ppo.py
     adaptation_lr: float = 1e-3  # the adaptation module's own optimiser
     checkpoint_every: int = 20  # iterations between checkpoints (and one at the end)

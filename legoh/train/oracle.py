@@ -9,6 +9,7 @@ and the adaptation module's fit; :class:`legoh.train.runner.OnPolicyRunner` does
 from __future__ import annotations
 
 import functools
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -43,7 +44,8 @@ class OracleRun:
 def build_oracle(env: HikingEnv, cfg: DictConfig):
     """Actor, critic and adaptation module sized from the env's specs."""
     dims = OracleInputDims.from_spec(env.observation_spec)
-    net = OracleNetConfig(init_std=cfg.algo.init_noise_std)
+    net = OracleNetConfig(init_std=cfg.algo.init_noise_std,
+                          critic=tuple(int(size) for size in cfg.algo.critic_hidden))
     actor, critic = make_oracle_actor_critic(dims, env.num_actions, cfg.algo.tanh_bound, net)
     adaptation = make_adaptation_module(dims.proprio, dims.history)
     return dims, actor, critic, adaptation
@@ -86,15 +88,20 @@ def _train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None,
         print(f"[legoh] resumed from {resume} at iteration {runner.iteration}")
 
     def update(batch) -> dict:
-        with torch.no_grad():
-            gae(batch)
+        clock = [time.perf_counter()]
+        gae(batch)
+        clock.append(time.perf_counter())
         stats = ppo_update(loss, optimizer, batch.reshape(-1), algo, gen, exact_kl=True,
                            lagged=bool(cfg.collector.overlap))
+        clock.append(time.perf_counter())
         adapt = adaptation_loss(adaptation, actor, batch.reshape(-1), gen)
         adapt_optim.zero_grad()
         adapt.backward()
         adapt_optim.step()
+        clock.append(time.perf_counter())
         stats["loss_adaptation"] = float(adapt.detach())
+        stats.update({f"time/{name}": t1 - t0 for name, t0, t1
+                      in zip(("gae", "ppo", "adaptation"), clock[:-1], clock[1:], strict=True)})
         return stats
 
     it = runner.learn(actor, functools.partial(make_env, cfg), update, stop, resume,
