@@ -8,10 +8,13 @@ Per batch size N, in one run (these machines are noisy, so compare within a run)
   update:     GAE + the PPO epochs + the adaptation module on one collected batch, in
               float32 and with ``algo.update_precision=bfloat16`` (autocast);
   loop:       the real training loop (``train_oracle``), frames/s of its iterations after
-              the first: the default, then ``fast`` (bfloat16 update + ``collector.overlap``:
-              the next batch is collected in a worker process while the learner updates),
-              with MuJoCo's default threads and with ``sim.threads=1`` (one core each for
-              the env worker and the learner).
+              the first, in three settings:
+                default: float32 update, collection and update take turns in one process;
+                fast:    ``algo.update_precision=bfloat16 collector.overlap=true`` (autocast
+                         update; the next batch is collected in a worker process while the
+                         learner updates);
+                lean:    fast with ``algo.critic_hidden=[256,128,64] algo.epochs=3`` (a
+                         cheaper update; its learning is measured by learn_walk).
 Then update variants at the largest N (epochs x minibatches, precision): what a cheaper
 update would buy. Writes experiments/results/bench_train.{md,json}.
 """
@@ -41,6 +44,10 @@ from legoh.objectives.ppo import make_ppo, ppo_update  # noqa: E402
 from legoh.train.oracle import build_oracle, train_oracle  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
+BF16, CRITIC256, EPOCHS3 = ("algo.update_precision=bfloat16", "algo.critic_hidden=[256,128,64]",
+                            "algo.epochs=3")
+LOOPS = {"default": [], "fast": [BF16, "collector.overlap=true"],
+         "lean": [BF16, "collector.overlap=true", CRITIC256, EPOCHS3]}
 OUT = ROOT / "experiments" / "results"
 
 
@@ -113,13 +120,10 @@ def main() -> None:  # noqa: PLR0915 - one measurement table after another
     parser.add_argument("--sizes", type=int, nargs="+", default=[64, 256, 512, 1024])
     parser.add_argument("--iterations", type=int, default=3)
     parser.add_argument("--note", default="", help="a line on the conditions of this run")
-    parser.add_argument("--fast-extra", nargs="*", default=[],
-                        help="more overrides for the fast loop, e.g. algo.epochs=2")
     parser.add_argument("--tag", default="", help="results as bench_train_<tag>.{md,json}")
     parser.add_argument("--no-variants", action="store_true", help="skip the update variants")
     args = parser.parse_args()
     torch.set_num_threads(1)
-    fast = ["algo.update_precision=bfloat16", "collector.overlap=true", *args.fast_extra]
     rows = []
     for n in args.sizes:
         cfg = config(n)
@@ -128,23 +132,21 @@ def main() -> None:  # noqa: PLR0915 - one measurement table after another
         col, (upd, upd_bf16), _ = collect_and_update(cfg, env, args.iterations,
                                                      ("float32", "bfloat16"))
         env.close()
-        loop = loop_rate(cfg, args.iterations)
-        loop_fast = loop_rate(config(n, *fast), args.iterations + 1)
-        loop_fast1 = loop_rate(config(n, *fast, "sim.threads=1"), args.iterations + 1)
+        loops = {name: loop_rate(config(n, *extra), args.iterations + bool(extra))
+                 for name, extra in LOOPS.items()}
         row = {"N": n, "bare": bare, "collection": col, "update": upd, "update_bf16": upd_bf16,
-               "loop": loop, "loop_over_bare": loop / bare, "loop_fast": loop_fast,
-               "fast_over_bare": loop_fast / bare, "loop_fast_1thread": loop_fast1,
-               "fast_1thread_over_bare": loop_fast1 / bare,
+               **{f"loop_{name}": fps for name, fps in loops.items()},
+               **{f"{name}_over_bare": fps / bare for name, fps in loops.items()},
                "update_share": (1 / upd) / (1 / col + 1 / upd)}
         rows.append(row)
         print(json.dumps(row), flush=True)
 
     n = args.sizes[-1]
-    variants = {} if args.no_variants else {"5 x 4, float32 (default)": [],
-                "5 x 4, bfloat16": ["algo.update_precision=bfloat16"],
-                "5 x 2": ["algo.minibatches=2"],
-                "2 x 4": ["algo.epochs=2"],
-                "2 x 4, bfloat16": ["algo.epochs=2", "algo.update_precision=bfloat16"]}
+    variants = {} if args.no_variants else {
+        "5 x 4, float32 (default)": [], "5 x 4, bfloat16": [BF16],
+        "5 x 2, bfloat16": [BF16, "algo.minibatches=2"], "3 x 4, bfloat16": [BF16, EPOCHS3],
+        "5 x 4, bfloat16, critic 256-128-64": [BF16, CRITIC256],
+        "3 x 4, bfloat16, critic 256-128-64 (lean)": [BF16, CRITIC256, EPOCHS3]}
     var_rows = []
     for name, extra in variants.items():
         cfg = config(n, *extra)
@@ -162,16 +164,16 @@ def main() -> None:  # noqa: PLR0915 - one measurement table after another
          "torch_threads": 1, "cpus": os.cpu_count(), "note": args.note}, indent=2))
     lines = ["# Oracle training loop vs its env (frames/s, one run, 1 torch thread, "
              f"{os.cpu_count()} CPUs)", "", *([args.note, ""] if args.note else []),
-             f"fast = `{' '.join(fast)}`; "
-             "fast, 1 thread: the same with `sim.threads=1`.", "",
-             "| N | bare env | collection | update | update bf16 | loop | loop / bare | "
-             "fast | fast / bare | fast, 1 thread | ... / bare | update share |",
+             f"fast = `{' '.join(LOOPS['fast'])}`; lean = fast + "
+             f"`{' '.join(LOOPS['lean'][len(LOOPS['fast']):])}`.", "",
+             "| N | bare env | collection | update | update bf16 | default loop | / bare | "
+             "fast loop | / bare | lean loop | / bare | update share |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     lines += [f"| {r['N']} | {r['bare']:.0f} | {r['collection']:.0f} | {r['update']:.0f} | "
-              f"{r['update_bf16']:.0f} | {r['loop']:.0f} | {r['loop_over_bare']:.2f} | "
-              f"{r['loop_fast']:.0f} | {r['fast_over_bare']:.2f} | "
-              f"{r['loop_fast_1thread']:.0f} | {r['fast_1thread_over_bare']:.2f} | "
-              f"{r['update_share']:.0%} |" for r in rows]
+              f"{r['update_bf16']:.0f} | "
+              + " | ".join(f"{r[f'loop_{name}']:.0f} | {r[f'{name}_over_bare']:.2f}"
+                           for name in LOOPS)
+              + f" | {r['update_share']:.0%} |" for r in rows]
     if var_rows:
         lines += ["", f"Update variants at N = {n} (epochs x minibatches; the loop estimate "
                   "is collection and update in series)", "",

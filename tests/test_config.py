@@ -115,6 +115,8 @@ def test_mistyped_key_in_a_yaml_file_fails(tmp_path: Path) -> None:
     ("algo.num_envs=0", "algo.num_envs=0 is out of range: algo.num_envs must be 1 <= x"),
     ("env.depth.width=-5", "env.depth.width=-5 is out of range: env.depth.width must be 1 <= x"),
     ("algo.gamma=1.5", "algo.gamma must be 0 <= x <= 1"),
+    ("algo.critic_hidden=[256,0]", "algo.critic_hidden=[256, 0] is out of range: "
+                                   "algo.critic_hidden must be 1 <= x"),
     ("env.command.speed=[1.0,0.2]", "env.command.speed=[1.0, 0.2] is out of range: "
                                     "env.command.speed must be [low, high] with low <= high"),
     ("env.curriculum.down=0.9", "env.curriculum.down=0.9 must not exceed env.curriculum.up"),

@@ -77,6 +77,21 @@ def test_one_dagger_iteration_then_resume(artefacts, tmp_path, algo):
     assert env_fn(0).observation_spec["obs"]["proprio"].shape[-1] == meta["proprio"]
 
 
+def test_stage_two_builds_the_critic_its_oracle_trained(artefacts, tmp_path):
+    """algo.critic_hidden travels in the oracle's checkpoint. Failed before with: a size
+    mismatch loading the oracle's critic (stage 2 built the default 512-256-128)."""
+    from legoh.train.oracle import train_oracle
+
+    stage1 = compose_config("trail=flat", "algo.num_envs=4", "algo.steps_per_env=8",
+                            "algo.total_frames=32", "algo.critic_hidden=[32,16]")
+    oracle = train_oracle(stage1, tmp_path / "oracle").checkpoint
+    run = train_student(tiny("rma_b", artefacts, f"algo.oracle_checkpoint={oracle}"),
+                        tmp_path / "student")
+    critic = load_checkpoint(run.checkpoint)["models"]["critic"]
+    widths = {w.shape[0] for name, w in critic.items() if name.endswith("weight")}
+    assert {32, 16} <= widths and 512 not in widths
+
+
 def test_checkpoint_of_another_student_is_refused(artefacts, tmp_path):
     run = train_student(tiny("rma_b", artefacts), tmp_path / "a")
     with pytest.raises(CheckpointError, match="student 'rma_b'"):

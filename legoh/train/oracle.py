@@ -74,6 +74,7 @@ def _train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None,
     env = make_env(cfg, num_envs=algo.num_envs)
     dims, actor, critic, adaptation = build_oracle(env, cfg)
     runner = OnPolicyRunner(cfg, out_dir, env, {}, {}, dims.as_layout(), "oracle.pt",
+                            extra={"critic_hidden": [int(x) for x in algo.critic_hidden]},
                             desc="oracle PPO")
     for module in (actor, critic, adaptation):
         module.to(runner.device)

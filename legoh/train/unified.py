@@ -25,7 +25,7 @@ from legoh import keys
 from legoh.checkpoint import CheckpointError, load_checkpoint
 from legoh.config.algo import OracleConfig
 from legoh.envs.hiking_env import make_env
-from legoh.modules.actor_critic import LOC
+from legoh.modules.actor_critic import LOC, OracleInputDims
 from legoh.modules.students import Student, StudentDims, make_student, unroll
 from legoh.objectives.distill import distillation_loss
 from legoh.objectives.ppo import make_ppo, ppo_update
@@ -91,8 +91,13 @@ def ensure_oracle(cfg: DictConfig) -> Path:
 def load_oracle(cfg: DictConfig, path: Path, env: EnvBase):
     """The frozen oracle actor and its critic (the student's critic starts from it)."""
     stage1 = oracle_config(cfg)
-    dims, actor, critic, _ = build_oracle(env, stage1)
-    state = load_checkpoint(path, expect_robot=cfg.robot.name, expect_layout=dims.as_layout())
+    state = load_checkpoint(path, expect_robot=cfg.robot.name,
+                            expect_layout=OracleInputDims.from_spec(env.observation_spec
+                                                                    ).as_layout())
+    # the critic as that oracle trained it (algo.critic_hidden; older checkpoints: default)
+    stage1.algo.critic_hidden = state.get("extra", {}).get("critic_hidden",
+                                                           stage1.algo.critic_hidden)
+    _, actor, critic, _ = build_oracle(env, stage1)
     actor.load_state_dict(state["models"]["actor"])
     critic.load_state_dict(state["models"]["critic"])
     actor.requires_grad_(False)
