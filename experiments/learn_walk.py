@@ -18,6 +18,8 @@ import argparse
 import csv
 import json
 import os
+import shlex
+import sys
 import time
 from pathlib import Path
 
@@ -132,8 +134,9 @@ def main() -> None:
         clock["tick"] = time.perf_counter()
         return stop
 
+    hint = " ".join(["python", *map(shlex.quote, sys.argv)])  # rerun: it resumes from out
     run = train_oracle(cfg, out, resume=str(resume) if resume.exists() else None,
-                       on_iteration=on_iteration)
+                       on_iteration=on_iteration, resume_hint=hint)
     write_results(out, args, cfg, rows, milestones)
     try:
         from legoh.play import render_policy_video

@@ -48,7 +48,7 @@ class OnePassGAE:
     observation) and at the batch's last step. So the values of ``obs`` shifted by one step
     serve as next values, and the critic runs on the next observations of those rows only
     (~1/T of them). Exact: tests compare it with torchrl's two-pass GAE; the second pass
-    was ~8 % of an update (bench_train.md).
+    was ~9 % of an update (docs/oracle.md, "The loop").
     """
 
     def __init__(self, critic, gamma: float, lmbda: float) -> None:
@@ -85,7 +85,7 @@ def loss_keys(loss: ClipPPOLoss, exact_kl: bool) -> list:
     """The keys a minibatch needs: the networks' inputs, the action and its log-prob, the
     advantage and targets (and the acting policy's loc/scale for the exact KL). Gathering
     only these, not the batch's ~100 keys (next observations, info, reward terms), cut
-    the minibatch indexing from ~15 % of an update (bench_train.md)."""
+    the minibatch indexing from ~15 % of an update (docs/oracle.md)."""
     k = loss.tensor_keys
     keys = {*loss.actor_network.in_keys, *loss.critic_network.in_keys, k.action,
             k.sample_log_prob, k.advantage, k.value_target, k.value}
