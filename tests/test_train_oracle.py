@@ -157,16 +157,22 @@ def test_adaptive_learning_rate_rule() -> None:
     assert adapt_learning_rate(1e-5, kl=1.0, desired_kl=0.01) == pytest.approx(1e-5)  # clamp
 
 
-def _fixed_batch(*overrides: str):
-    cfg = compose_config(*TINY, "env.only_positive_rewards=false", *overrides)
+def _rollout(*overrides: str):
+    """(cfg, actor, critic, loss, gae, a 16-step rollout of 4 envs without advantages)."""
+    cfg = compose_config(*TINY, *overrides)
     env = make_env(cfg, num_envs=4)
     torch.manual_seed(0)
     _, actor, critic, _ = build_oracle(env, cfg)
     loss, gae = make_ppo(actor, critic, cfg.algo)
     with torch.no_grad():
         batch = env.rollout(16, actor, break_when_any_done=False)
-        gae(batch)
     env.close()
+    return cfg, actor, critic, loss, gae, batch
+
+
+def _fixed_batch(*overrides: str):
+    cfg, actor, _, loss, gae, batch = _rollout("env.only_positive_rewards=false", *overrides)
+    gae(batch)
     return cfg, actor, loss, batch.reshape(-1)
 
 
@@ -176,14 +182,7 @@ def test_one_pass_gae_equals_torchrls_two_pass_gae() -> None:
     # Episodes of 0.2 s end inside the 16-step rollout, so the recomputed rows are exercised.
     from torchrl.objectives.value import GAE
 
-    cfg = compose_config(*TINY, "env.episode_length_s=0.2")
-    env = make_env(cfg, num_envs=4)
-    torch.manual_seed(0)
-    _, actor, critic, _ = build_oracle(env, cfg)
-    _, gae = make_ppo(actor, critic, cfg.algo)
-    with torch.no_grad():
-        batch = env.rollout(16, actor, break_when_any_done=False)
-    env.close()
+    cfg, _, critic, _, gae, batch = _rollout("env.episode_length_s=0.2")
     done = batch["next", "done"].squeeze(-1)
     assert done[:, :-1].any()  # some episode ends mid-batch
     two_pass = GAE(gamma=cfg.algo.gamma, lmbda=cfg.algo.gae_lambda, value_network=critic,
