@@ -96,8 +96,7 @@ def collect_and_update(cfg, env, batches: int, precisions=("float32",)
 def update_time(cfg, batch, loss, gae, opt, adaptation, aopt, actor) -> float:
     t0 = time.perf_counter()
     batch = batch.reshape(-1, batch.shape[-1])
-    with torch.no_grad():
-        gae(batch)
+    gae(batch)
     ppo_update(loss, opt, batch.reshape(-1), cfg.algo, exact_kl=True)
     a = adaptation_loss(adaptation, actor, batch.reshape(-1))
     aopt.zero_grad()

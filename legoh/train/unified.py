@@ -309,8 +309,7 @@ def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None,
                                      cfg, gen))
         clock["prior"] = time.perf_counter()
         if algo.ppo and algo.weights.w1:
-            with torch.no_grad():
-                gae(batch)
+            gae(batch)
             stats.update(ppo_update(loss, ppo_optim, batch.reshape(-1), algo, gen,
                                     scale=algo.weights.w1, lagged=bool(cfg.collector.overlap)))
         clock["ppo"] = time.perf_counter()
