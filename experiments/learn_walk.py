@@ -30,6 +30,7 @@ from hydra import compose, initialize_config_dir  # noqa: E402
 from omegaconf import OmegaConf  # noqa: E402
 
 from legoh.config import register_configs  # noqa: E402
+from legoh.config.env import Schedule  # noqa: E402
 from legoh.envs.hiking_env import make_env  # noqa: E402
 from legoh.eval.benchmark import rollout_level  # noqa: E402
 from legoh.threads import torch_threads  # noqa: E402
@@ -55,6 +56,7 @@ def eval_env(cfg, trail: str, randomize: bool):
     run = OmegaConf.merge(cfg, {"trail": base.trail, "seed": 1000 + int(cfg.seed)})
     rand = OmegaConf.to_object(run.env.randomization)
     rand.enabled, rand.start_after_steps, rand.delay_after_steps = randomize, 0, 0
+    rand.schedule = Schedule.steps  # full strength from the first step
     cur = OmegaConf.to_object(run.env.curriculum)
     cur.enabled = False
     return make_env(run, num_envs=ROBOTS, evaluation=True, episode_length_s=SECONDS,

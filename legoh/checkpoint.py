@@ -163,13 +163,18 @@ def load_checkpoint(path: str | Path, expect_robot: str | None = None,
         raise CheckpointError(f"{path} was trained on robot {payload['robot']!r}, "
                               f"but this run uses robot {expect_robot!r}")
     if expect_layout is not None:
-        want, have = normalize_layout(expect_layout), normalize_layout(payload["layout"])
-        if want != have:
-            diff = sorted(k for k in set(want) | set(have) if want.get(k) != have.get(k))
-            raise CheckpointError(
-                f"{path} has observation layout {have}, but this run has {want} "
-                f"(differing keys: {diff})")
+        check_layout(path, expect_layout, payload["layout"])
     return payload
+
+
+def check_layout(path: str | Path, expect: Mapping, layout: Mapping) -> None:
+    """Refuse a checkpoint at ``path`` whose observation ``layout`` differs from
+    ``expect``, naming the differing keys."""
+    want, have = normalize_layout(expect), normalize_layout(layout)
+    if want != have:
+        diff = sorted(k for k in set(want) | set(have) if want.get(k) != have.get(k))
+        raise CheckpointError(f"{path} has observation layout {have}, but this run has "
+                              f"{want} (differing keys: {diff})")
 
 
 def verify_zip(path: Path) -> None:

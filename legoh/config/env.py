@@ -1,6 +1,7 @@
 """HikingEnv config schema (the ``env`` node of ``conf/config.yaml``)."""
 
 from dataclasses import dataclass, field
+from enum import StrEnum
 
 
 def table6_weights() -> dict[str, float]:
@@ -79,9 +80,26 @@ class DepthConfig:
     far: float = 3.0  # m: range clip
 
 
+class Schedule(StrEnum):
+    """When randomisation comes in (``env.randomization.schedule``)."""
+
+    gate = "gate"  # by performance: a ramp that advances while training robots stay up
+    steps = "steps"  # by step counts (Extreme Parkour's, appendix Table 5's "24 x 8000")
+
+
 @dataclass
 class RandomizationConfig:
-    """Appendix Table 5. Per-env physics parameters come from a pool of model copies."""
+    """Appendix Table 5. Per-env physics parameters come from a pool of model copies.
+
+    Everything here comes in through one strength s in [0, 1] that the env owns: a reset
+    env steps a randomised pool member with probability s (else the nominal model), gets
+    an action delay with probability s, and pushes kick up to s x ``push_max_vel``.
+    ``schedule=gate`` (default) raises s by ``1 / ramp_steps`` per vectorised step while the
+    share of ended training episodes that were not falls (an EMA over episodes) is at least
+    ``gate``; it never goes down. ``schedule=steps`` is the step-count switch of Extreme
+    Parkour (s jumps to 1 at ``start_after_steps``; delays from ``delay_after_steps``),
+    which collapsed a walker's episodes from 20 s to 4 s (docs/oracle.md).
+    """
 
     enabled: bool = True
     pool_size: int = 8  # model copies with their own friction, mass, CoM, motor strength
@@ -91,11 +109,13 @@ class RandomizationConfig:
     motor_strength: list[float] = field(default_factory=lambda: [0.8, 1.2])
     push_interval_s: float = 8.0  # s
     push_max_vel: float = 0.5  # m/s, xy
-    max_action_delay: int = 1  # policy steps of delay reachable once delay_after_steps passed
-    # The schedule counts vectorised steps (one per env.step of the whole batch, legged_gym's
-    # common_step_counter): physics draws and pushes start after ``start_after_steps``, delays
-    # after ``delay_after_steps`` (Extreme Parkour: 24 x 8000). Before that every env steps
-    # the nominal model, so a robot learns to walk before it is pushed.
+    max_action_delay: int = 1  # policy steps of delay
+    schedule: Schedule = Schedule.gate
+    gate: float = 0.8  # share of ended episodes not falls (EMA) that lets the ramp advance
+    gate_smoothing: float = 0.02  # EMA weight of each ended episode
+    ramp_steps: int = 12_000  # vectorised steps from s = 0 to 1 with the gate open (500 x 24)
+    # schedule=steps: the schedule counts vectorised steps (one per env.step of the whole
+    # batch, legged_gym's common_step_counter). Extreme Parkour: delays after 24 x 8000.
     start_after_steps: int = 24_000  # 1000 iterations of 24 steps
     delay_after_steps: int = 36_000  # 1500 iterations of 24 steps
 

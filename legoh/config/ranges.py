@@ -105,6 +105,8 @@ RANGES: list[tuple[str, Range]] = [
                                                    NON_NEGATIVE_INTERVAL),
     ("env.randomization.base_mass_offset", INTERVAL),
     ("env.randomization.motor_strength", NON_NEGATIVE_INTERVAL),
+    ("env.randomization.gate", FRACTION), ("env.randomization.gate_smoothing", FRACTION),
+    ("env.randomization.ramp_steps", COUNT),
     ("env.randomization.*", NON_NEGATIVE),  # offsets, speeds, delays, step counts
     ("env.curriculum.*", NON_NEGATIVE),
     ("env.spawn_noise", NON_NEGATIVE), ("env.air_time_target", NON_NEGATIVE),

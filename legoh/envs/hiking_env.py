@@ -72,6 +72,8 @@ class HikingEnv(EnvBase):
         self._constants(robot)
         self._terms()
         self.global_steps = 0  # vectorised steps: the randomisation schedule reads it
+        self.randomization = events.RandomizationSchedule(env.randomization,
+                                                          self.sim.num_draws)
         self.frame_clock = 0  # one depth clock for all envs
         self.diverged_count = 0
         # envs reset in place by this step's divergence check: torchrl's reset of the
@@ -102,7 +104,6 @@ class HikingEnv(EnvBase):
                                                   / self.scan_grid.res)
         self.goal_offsets = torch.arange(observations.NUM_EXPERT_GOALS, device=dev)
         self.physics_features = t(self.physics.as_features(), torch.float32)
-        self.category_onehot = torch.eye(self.num_categories, device=dev)
         self.push_every = max(1, int(round(self.cfg.randomization.push_interval_s / self.dt)))
 
     def _terms(self) -> None:
@@ -113,6 +114,7 @@ class HikingEnv(EnvBase):
                                     device=dev) if c.curriculum.enabled
                       else torch.zeros(n, dtype=torch.int64, device=dev))
         self.steps = torch.zeros(n, dtype=torch.int64, device=dev)
+        self.fell_last = torch.zeros(n, dtype=torch.bool, device=dev)  # the last step's falls
         self.ctrl = self.default_pose.expand(n, -1).clone()
         joints = len(self.robot.actuated_joints)
         self.action_delay = events.ActionDelay(n, c.randomization.max_action_delay,
@@ -188,6 +190,7 @@ class HikingEnv(EnvBase):
         self.sim.step(self.ctrl)
         self.steps += 1
         self.global_steps += 1
+        self.randomization.step()
         diverged = self._handle_divergence(time_before)
         s = self.state = compute_state(self, action)
         reward, self.reward_parts = rewards.compute_rewards(s, self.reward_terms)
@@ -199,6 +202,7 @@ class HikingEnv(EnvBase):
         timeout = torch.stack([flags[k] for k, (_, t) in TERMINATIONS.items() if t]).any(0)
         truncated = (timeout | diverged) & ~terminated
         reward = reward + self.termination_penalty * self.dt * (fell & ~flags["reached"])
+        self.fell_last = fell & ~flags["reached"]
         self.memory.update(s)
         self.frame_clock += 1
         due = self.depth_cam is not None and self.frame_clock % self.cfg.depth.every == 0
@@ -240,6 +244,21 @@ class HikingEnv(EnvBase):
             nested.setdefault(group, {})[name] = value
         nested[keys.INFO].update({name: flag.clone() for name, flag in flags.items()})
         return TensorDict(nested, batch_size=[self.num_envs], device=self.device)
+
+    # ----------------------------------------------------------------- curriculum state
+    def curriculum_state(self) -> dict:
+        """What a checkpoint keeps of the env's training schedule: terrain levels, the
+        vectorised step counter and the randomisation gate (plain values)."""
+        return {"level": self.level.tolist(), "global_steps": int(self.global_steps),
+                "randomization": self.randomization.state()}
+
+    def load_curriculum_state(self, state: dict) -> None:
+        """Set the schedule back to :meth:`curriculum_state`'s ``state`` (a checkpoint
+        from before the gate has no ``randomization``: the gate starts closed)."""
+        self.level[:] = torch.as_tensor(state["level"], device=self.device)
+        self.global_steps = int(state["global_steps"])
+        if "randomization" in state:
+            self.randomization.load_state(state["randomization"])
 
     def close(self, **kwargs) -> None:
         """Stop the physics."""

@@ -7,9 +7,8 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
-from legoh.checkpoint import load_checkpoint
 from legoh.eval.benchmark import evaluate, make_eval_env
-from legoh.train.oracle import build_oracle
+from legoh.train.oracle import build_oracle, load_oracle_checkpoint, resolve_checkpoint
 
 
 def build_actor(cfg: DictConfig, checkpoint: str | None = None):
@@ -24,9 +23,8 @@ def build_actor(cfg: DictConfig, checkpoint: str | None = None):
     finally:
         env.close()
     if checkpoint:
-        payload = load_checkpoint(checkpoint, expect_robot=cfg.robot.name,
-                                  expect_layout=dims.as_layout())
-        actor.load_state_dict(payload["models"]["actor"])
+        path = resolve_checkpoint(checkpoint, cfg.robot.name)
+        actor.load_state_dict(load_oracle_checkpoint(path, cfg, dims)["models"]["actor"])
     return actor, None
 
 

@@ -99,6 +99,21 @@ class OracleInputDims:
                    scandots=last(SCANDOTS)[0], expert_goals=last(EXPERT_GOALS, 2),
                    history=hist, command=last(COMMAND)[0])
 
+    @classmethod
+    def from_layout(cls, layout: dict) -> OracleInputDims:
+        """Sizes from a checkpoint's layout (``as_layout``'s inverse)."""
+        def get(key) -> tuple[int, ...]:
+            return tuple(layout["/".join(key)])
+
+        hist, proprio = get(PROPRIO_HISTORY)
+        return cls(proprio=get(PROPRIO)[0], privileged=get(PRIVILEGED)[0],
+                   scandots=get(SCANDOTS)[0], expert_goals=get(EXPERT_GOALS),
+                   history=hist, command=get(COMMAND)[0])
+
+    def head_width(self, cfg: OracleNetConfig) -> int:
+        """Input width of the actor and critic MLPs."""
+        return sum(_head_inputs(self, cfg, TEACHER_LATENT, PRIV_LATENT)[1])
+
     def as_layout(self) -> dict[str, tuple[int, ...]]:
         """Observation layout (key -> per-env shape), as stored in checkpoints."""
         return {"/".join(PROPRIO): (self.proprio,), "/".join(PRIVILEGED): (self.privileged,),
@@ -166,6 +181,12 @@ def _head_inputs(dims: OracleInputDims, cfg: OracleNetConfig, scan_key, priv_key
              (COMMAND, dims.command, 1)]
     keys, sizes, events = (list(c) for c in zip(*rows, strict=True))
     return keys, sizes, events
+
+
+def head_input_offset(dims: OracleInputDims, cfg: OracleNetConfig, key) -> int:
+    """The first column of input ``key`` in the actor and critic MLPs' input."""
+    keys, sizes, _ = _head_inputs(dims, cfg, TEACHER_LATENT, PRIV_LATENT)
+    return sum(sizes[: keys.index(key)])
 
 
 def make_oracle_actor_critic(dims: OracleInputDims, action_dim: int, action_bound: float | None,

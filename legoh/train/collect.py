@@ -183,17 +183,23 @@ def mirror_curriculum(collector: BaseCollector, env: EnvBase, batch) -> None:
     if isinstance(collector, Collector):
         return
     base = getattr(env, "base_env", env)  # the HikingEnv under a stage-2 TransformedEnv
-    base.level[:] = batch["next", keys.LEVEL][:, -1].to(base.level.device)
-    base.global_steps += int(batch.shape[-1])
+    strength, survival = batch["next", keys.RANDOMIZATION][0, -1].tolist()
+    base.load_curriculum_state({
+        "level": batch["next", keys.LEVEL][:, -1],
+        "global_steps": base.global_steps + int(batch.shape[-1]),
+        "randomization": {"ramp": strength, "survival": survival}})
 
 
 def _worker_factories(make_env_fn, per_worker: int, workers: int, env: EnvBase | None
                       ) -> list[_WorkerEnv]:
     """One factory per worker; each carries its slice of ``env``'s curriculum (if given)."""
     base = getattr(env, "base_env", env)
-    return [_WorkerEnv(make_env_fn, per_worker, None if base is None else {
-        "level": base.level[i * per_worker:(i + 1) * per_worker].cpu().clone(),
-        "global_steps": int(base.global_steps)}) for i in range(workers)]
+    if base is None:
+        return [_WorkerEnv(make_env_fn, per_worker) for _ in range(workers)]
+    state = base.curriculum_state()
+    return [_WorkerEnv(make_env_fn, per_worker, {
+        **state, "level": state["level"][i * per_worker:(i + 1) * per_worker]})
+        for i in range(workers)]
 
 
 class _WorkerEnv:
@@ -209,7 +215,5 @@ class _WorkerEnv:
     def __call__(self) -> EnvBase:
         env = self.make_env_fn(self.num_envs)
         if self.curriculum is not None:
-            base = getattr(env, "base_env", env)
-            base.level[:] = torch.as_tensor(self.curriculum["level"])
-            base.global_steps = self.curriculum["global_steps"]
+            getattr(env, "base_env", env).load_curriculum_state(self.curriculum)
         return env

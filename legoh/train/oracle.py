@@ -16,11 +16,14 @@ from pathlib import Path
 import torch
 from omegaconf import DictConfig
 
-from legoh.checkpoint import load_checkpoint
+from legoh.checkpoint import CheckpointError, check_layout, load_checkpoint
 from legoh.envs.hiking_env import HikingEnv, make_env
+from legoh.envs.mdp.observations import PRIVILEGED_WIDTH
+from legoh.keys import PRIVILEGED
 from legoh.modules.actor_critic import (
     OracleInputDims,
     OracleNetConfig,
+    head_input_offset,
     make_oracle_actor_critic,
 )
 from legoh.modules.encoders import make_adaptation_module
@@ -49,6 +52,83 @@ def build_oracle(env: HikingEnv, cfg: DictConfig):
     actor, critic = make_oracle_actor_critic(dims, env.num_actions, cfg.algo.tanh_bound, net)
     adaptation = make_adaptation_module(dims.proprio, dims.history)
     return dims, actor, critic, adaptation
+
+
+PRETRAINED_DIR = Path(__file__).resolve().parents[2] / "pretrained"
+
+
+def pretrained_path(robot: str, stage: str = "oracle") -> Path:
+    """``pretrained/<robot>_<stage>.pt``, the file ``init=pretrained`` and
+    ``checkpoint=pretrained`` pick."""
+    path = PRETRAINED_DIR / f"{robot}_{stage}.pt"
+    if not path.is_file():
+        have = sorted(p.name for p in PRETRAINED_DIR.glob("*.pt"))
+        raise FileNotFoundError(f"no pretrained {stage} for robot {robot!r} at {path} "
+                                f"(shipped: {have})")
+    return path
+
+
+def resolve_checkpoint(value: str, robot: str, stage: str = "oracle") -> Path:
+    """A checkpoint setting: ``pretrained`` (the shipped file of the robot) or a path."""
+    return pretrained_path(robot, stage) if value == "pretrained" else Path(value)
+
+
+def load_oracle_checkpoint(path: str | Path, cfg: DictConfig, dims: OracleInputDims | None = None
+                           ) -> dict:
+    """Read an oracle checkpoint for robot ``cfg.robot`` (and, given ``dims``, refuse a
+    different observation layout, naming the keys). Checkpoints from before the privileged
+    vector lost its category one-hot are converted exactly (:func:`fold_category_onehot`)."""
+    state = fold_category_onehot(load_checkpoint(path, expect_robot=cfg.robot.name))
+    if dims is not None:
+        check_layout(path, dims.as_layout(), state["layout"])
+    return state
+
+
+def fold_category_onehot(state: dict) -> dict:
+    """A checkpoint whose privileged vector ended in a one-hot of its trail's single
+    category (older code): that input was the constant 1, so its weights are folded into
+    the biases and the column dropped, which leaves every output unchanged."""
+    key = "/".join(PRIVILEGED)
+    cats = state.get("config", {}).get("trail", {}).get("categories", [])
+    width = state["layout"].get(key, (PRIVILEGED_WIDTH,))[0]
+    if width == PRIVILEGED_WIDTH:
+        return state
+    if width != PRIVILEGED_WIDTH + 1 or len(cats) != 1:
+        raise CheckpointError(f"privileged inputs {width} wide for categories {cats}: only "
+                              f"a one-category one-hot can be converted to {PRIVILEGED_WIDTH}")
+    dims = OracleInputDims.from_layout(state["layout"])
+    head = dims.head_width(OracleNetConfig())
+    off = head_input_offset(dims, OracleNetConfig(), PRIVILEGED)
+    for name in ("actor", "critic"):
+        sd = dict(state["models"].get(name, {}))
+        for wkey, w in list(sd.items()):
+            if not wkey.endswith("weight") or w.ndim != 2 or w.shape[1] not in (width, head):
+                continue
+            col = width - 1 if w.shape[1] == width else off + width - 1
+            bkey = wkey[: -len("weight")] + "bias"
+            sd[bkey] = sd[bkey] + w[:, col]
+            sd[wkey] = torch.cat([w[:, :col], w[:, col + 1:]], 1)
+        state["models"][name] = sd
+    state["layout"] = {**state["layout"], key: (PRIVILEGED_WIDTH,)}
+    return state
+
+
+def warm_start(cfg: DictConfig, path: Path, dims: OracleInputDims, models: dict) -> dict:
+    """Load the weights of checkpoint ``path`` into a new run's ``models`` (``init=``): same
+    robot, layout, head and critic required (a mismatch names the field); optimisers,
+    curriculum, randomisation gate and iteration start afresh."""
+    state = load_oracle_checkpoint(path, cfg, dims)
+    want = {"algo.critic_hidden": [int(x) for x in cfg.algo.critic_hidden],
+            "algo.tanh_bound": cfg.algo.tanh_bound}
+    have = {"algo.critic_hidden": state.get("extra", {}).get("critic_hidden", [512, 256, 128]),
+            "algo.tanh_bound": state.get("config", {}).get("algo", {}).get("tanh_bound")}
+    for key in want:
+        if want[key] != have[key]:
+            raise CheckpointError(f"init={path}: it was trained with {key}={have[key]}, "
+                                  f"this run has {key}={want[key]}; set {key}={have[key]}")
+    for name, module in models.items():
+        module.load_state_dict(state["models"][name])
+    return state
 
 
 def train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None = None,
@@ -84,9 +164,12 @@ def _train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None,
     runner.models.update(actor=actor, critic=critic, adaptation=adaptation)
     runner.optims.update(ppo=optimizer, adaptation=adapt_optim)
     if resume:
-        runner.resume(load_checkpoint(resume, expect_robot=cfg.robot.name,
-                                      expect_layout=runner.layout))
+        runner.resume(load_oracle_checkpoint(resume, cfg, dims))
         print(f"[legoh] resumed from {resume} at iteration {runner.iteration}")
+    elif cfg.init:
+        init = resolve_checkpoint(cfg.init, cfg.robot.name)
+        warm_start(cfg, init, dims, runner.models)
+        print(f"[legoh] weights from {init} (init=); optimiser and curriculum start afresh")
 
     def update(batch) -> dict:
         clock = [time.perf_counter()]

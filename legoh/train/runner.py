@@ -19,7 +19,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import torch
 from omegaconf import DictConfig, OmegaConf
 from tqdm import tqdm
 
@@ -81,7 +80,7 @@ class OnPolicyRunner:
             models=self.models, optimizers=self.optims, iteration=iteration,
             robot=self.cfg.robot.name, layout=self.layout, config=self._resolved,
             extra=self.extra,
-            curriculum={"level": base.level.tolist(), "global_steps": base.global_steps}))
+            curriculum=base.curriculum_state()))
 
     def resume(self, state: dict) -> int:
         """Load a checkpoint's state (already read and checked) into the run; returns the
@@ -109,6 +108,7 @@ class OnPolicyRunner:
         csv = ScalarCSV(self.out_dir / "train.csv", resume=bool(resumed), until=start)
         mcap = McapLog(self.out_dir, stem="train")
         dt = getattr(env, "base_env", env).dt
+        categories = getattr(env, "base_env", env).terrain.categories
         bar = tqdm(total=iterations, initial=start, desc=self.desc, unit="it")
         tick = time.perf_counter()
         for batch in stop.batches(collector):
@@ -118,7 +118,7 @@ class OnPolicyRunner:
             stats["time/collect"], stats["time/update"] = got - tick, time.perf_counter() - got
             sync_weights(collector)  # workers act with the updated policy from the next batch
             mirror_curriculum(collector, env, batch)  # workers' levels -> checkpoint
-            stats.update(batch_scalars(batch))
+            stats.update(batch_scalars(batch, categories))
             now = time.perf_counter()
             stats["frames_per_s"] = frames_per_batch / (now - tick)
             tick = now
@@ -142,8 +142,10 @@ class OnPolicyRunner:
         return it
 
 
-def batch_scalars(batch) -> dict[str, float]:
-    """Per-iteration means of what the env reported: rewards, each term, levels, outcomes."""
+def batch_scalars(batch, categories: list[str] | None = None) -> dict[str, float]:
+    """Per-iteration means of what the env reported: rewards, each term, levels, outcomes,
+    the randomisation strength, and (given the map's ``categories``, when it has more than
+    one) the mean level and fall share per category."""
     nxt = batch["next"]
     done = nxt["done"].float()
     ended = nxt[keys.EPISODE_STEPS][nxt["done"].squeeze(-1)]
@@ -158,8 +160,19 @@ def batch_scalars(batch) -> dict[str, float]:
         "diverged": float(nxt[keys.DIVERGED].sum()),  # envs reset for a diverged simulation
         "progress": float(nxt[keys.PROGRESS].float().mean()),
     }
+    if keys.RANDOMIZATION[1] in nxt[keys.INFO].keys():
+        stats["randomization"] = float(nxt[keys.RANDOMIZATION][..., 0].mean())
     for name, value in nxt[keys.REWARD_TERMS].items():
         stats[f"reward/{name}"] = float(value.mean())
+    if categories is not None and len(categories) > 1:
+        cat, level = nxt[keys.CATEGORY], nxt[keys.LEVEL].float()
+        ended = nxt["done"].squeeze(-1)
+        for i, name in enumerate(categories):
+            mine = cat == i
+            stats[f"level/{name}"] = float(level[mine].mean()) if mine.any() else float("nan")
+            end = ended & mine
+            stats[f"fell/{name}"] = (float(nxt[keys.FELL][end].float().mean()) if end.any()
+                                     else float("nan"))
     return stats
 
 
@@ -170,9 +183,7 @@ def restore_training(state: dict, models: dict, optims: dict, env) -> int:
         module.load_state_dict(state["models"][name])
     for name, opt in optims.items():
         opt.load_state_dict(state["optimizers"][name])
-    base = getattr(env, "base_env", env)
-    base.level[:] = torch.as_tensor(state["curriculum"]["level"])
-    base.global_steps = int(state["curriculum"]["global_steps"])
+    getattr(env, "base_env", env).load_curriculum_state(state["curriculum"])
     restore_rng(state["rng"])
     return int(state["iteration"])
 

@@ -27,24 +27,94 @@ def uniform(env, low: float, high: float, *shape: int) -> torch.Tensor:
 
 
 def randomizing(env) -> bool:
-    """Physics draws and pushes are on: randomisation enabled and its start passed."""
-    rc = env.cfg.randomization
-    return rc.enabled and env.sim.num_draws > 1 and env.global_steps >= rc.start_after_steps
+    """Physics draws and pushes are on (the randomisation strength is above 0)."""
+    return env.randomization.strength(env.global_steps) > 0.0
+
+
+class RandomizationSchedule:
+    """The randomisation strength s in [0, 1] and the gate that raises it
+    (``RandomizationConfig``): state the env owns and checkpoints carry.
+
+    ``survival``: EMA over ended training episodes of "not a fall". ``ramp``: s under the
+    gate schedule, raised by :meth:`step` while ``survival >= cfg.gate``, never lowered.
+    """
+
+    def __init__(self, cfg, num_draws: int) -> None:
+        self.cfg = cfg
+        self.active = cfg.enabled and num_draws > 1
+        self.ramp = 0.0
+        self.survival = 0.0
+
+    def strength(self, global_steps: int) -> float:
+        """s at vectorised step ``global_steps``."""
+        if not self.active:
+            return 0.0
+        if self.cfg.schedule == "steps":
+            return float(global_steps >= self.cfg.start_after_steps)
+        return self.ramp
+
+    def delay_on(self, global_steps: int) -> float:
+        """Probability that a reset env gets an action delay."""
+        if not self.active:
+            return 0.0
+        if self.cfg.schedule == "steps":
+            return float(global_steps >= self.cfg.delay_after_steps)
+        return self.ramp
+
+    def episodes_ended(self, fell: torch.Tensor) -> None:
+        """Fold ended episodes (``fell``: (k,) bool, in any order) into the survival EMA."""
+        k = int(fell.numel())
+        if k == 0:
+            return
+        keep = 1.0 - self.cfg.gate_smoothing
+        weights = self.cfg.gate_smoothing * keep ** torch.arange(k - 1, -1, -1,
+                                                                dtype=torch.float64)
+        alive = (~fell).to("cpu", torch.float64)
+        self.survival = float(keep ** k * self.survival + (weights * alive).sum())
+
+    def step(self) -> None:
+        """One vectorised step: the ramp advances while the gate is open."""
+        if self.active and self.cfg.schedule == "gate" and self.survival >= self.cfg.gate:
+            self.ramp = min(1.0, self.ramp + 1.0 / self.cfg.ramp_steps)
+
+    def state(self) -> dict[str, float]:
+        return {"ramp": self.ramp, "survival": self.survival}
+
+    def load_state(self, state: dict) -> None:
+        self.ramp, self.survival = float(state["ramp"]), float(state["survival"])
+
+
+def chance(env, p: float, k: int) -> torch.Tensor:
+    """(k,) bool, each True with probability ``p`` (from the env's generator)."""
+    if p <= 0.0:
+        return torch.zeros(k, dtype=torch.bool, device=env.device)
+    return uniform(env, 0.0, 1.0, k) < p
 
 
 # ------------------------------------------------------------------ reset events
+def gate(env, ids: torch.Tensor) -> None:
+    """Ended training episodes (falls or not) feed the randomisation gate."""
+    if env.evaluation:
+        return
+    done = ids[env.steps[ids] > 0]
+    env.randomization.episodes_ended(env.fell_last[done])
+
+
 def curriculum(env, ids: torch.Tensor) -> None:
-    """Appendix 6.2.1: finished episodes move their env's level up or down."""
+    """Appendix 6.2.1: finished episodes move their env's level up or down. The expected
+    distance is the episode's commanded speed times the episode length (capped at the
+    trail's length), as the appendix says; an episode told to stand keeps its level."""
     cur = env.cfg.curriculum
     if not cur.enabled:
         return
-    done = ids[env.steps[ids] > 0]
+    done = ids[(env.steps[ids] > 0) & (env.command.speed[ids] > 0)]
     if len(done) == 0:
         return
     t = env.trails_t
     tile = env.goals.tile[done]
     covered = env.goals.progress(env.sim.qpos[:, 0:2])[done] * t.length[tile]
-    expected = torch.clamp(t.length[tile], max=env.cfg.goal_speed * env.cfg.episode_length_s)
+    expected = torch.clamp(env.command.speed[done] * env.cfg.episode_length_s,
+                           max=t.length[tile])
     reached = torch.linalg.vector_norm(t.terminus[tile] - env.sim.qpos[done, 0:2], dim=1) < (
         env.reach_radius)
     env.level[done] = update_levels(env.level[done], covered, expected, reached,
@@ -68,9 +138,10 @@ def spawn(env, ids: torch.Tensor) -> None:
     qpos[:, 4:6] = 0.0
     qpos[:, env.qpos_adr] = env.default_pose
     env.ctrl[ids] = env.default_pose
-    # draw 0 is the nominal one; the randomised ones 1.. join on schedule
-    drawn = (torch.randint(1, env.sim.num_draws, (k,), generator=env.gen, device=env.device)
-             if randomizing(env) else torch.zeros(k, dtype=torch.int64, device=env.device))
+    # draw 0 is the nominal one; a randomised one 1.. with the schedule's probability
+    drawn = torch.randint(1, max(env.sim.num_draws, 2), (k,), generator=env.gen,
+                          device=env.device)
+    drawn = torch.where(chance(env, env.randomization.strength(env.global_steps), k), drawn, 0)
     env.sim.set_models(ids, drawn)
     env.sim.reset_envs(ids, qpos, torch.zeros(k, env.sim.nv, device=env.device,
                                               dtype=env.dtype), env.ctrl[ids])
@@ -78,9 +149,8 @@ def spawn(env, ids: torch.Tensor) -> None:
 
 def draw_delay(env, ids: torch.Tensor) -> None:
     """Appendix Table 5: an action delay per episode, once the schedule allows it."""
-    rc = env.cfg.randomization
-    on = rc.enabled and env.global_steps >= rc.delay_after_steps
-    env.action_delay.draw(env, ids, rc.max_action_delay if on else 0)
+    on = chance(env, env.randomization.delay_on(env.global_steps), len(ids))
+    env.action_delay.draw(env, ids, env.cfg.randomization.max_action_delay, on)
 
 
 def draw_command(env, ids: torch.Tensor) -> None:
@@ -89,17 +159,17 @@ def draw_command(env, ids: torch.Tensor) -> None:
     env.command.resample(env, ids)
 
 
-RESET_EVENTS: list[Callable] = [curriculum, spawn, draw_delay, draw_command]
+RESET_EVENTS: list[Callable] = [gate, curriculum, spawn, draw_delay, draw_command]
 
 
 # ------------------------------------------------------------------ step events
 def push(env) -> None:
     """Appendix Table 5: every push interval, a random base xy velocity kick."""
-    rc = env.cfg.randomization
-    if not (randomizing(env) and rc.push_max_vel > 0):
+    top = env.cfg.randomization.push_max_vel * env.randomization.strength(env.global_steps)
+    if top <= 0:
         return
     due = (env.steps > 0) & (env.steps % env.push_every == 0)
-    kick = uniform(env, -rc.push_max_vel, rc.push_max_vel, env.num_envs, 2)
+    kick = uniform(env, -top, top, env.num_envs, 2)
     env.sim.qvel[:, 0:2] += kick * due[:, None]
 
 
@@ -122,9 +192,11 @@ class ActionDelay:
         self.buf = torch.cat([action[:, None], self.buf[:, :-1]], 1)
         return self.buf[self._rows, self.delay]
 
-    def draw(self, env, ids: torch.Tensor, max_delay: int) -> None:
-        self.delay[ids] = torch.randint(0, max_delay + 1, (len(ids),), generator=env.gen,
-                                        device=env.device)
+    def draw(self, env, ids: torch.Tensor, max_delay: int, on: torch.Tensor) -> None:
+        """A delay in 0..max_delay for the envs ``ids`` whose ``on`` (k,) is set, else 0."""
+        delay = torch.randint(0, max_delay + 1, (len(ids),), generator=env.gen,
+                              device=env.device)
+        self.delay[ids] = torch.where(on, delay, 0)
 
     def reset(self, ids: torch.Tensor) -> None:
         self.buf[ids] = 0.0

@@ -114,10 +114,16 @@ def scandots(env, obs: dict) -> torch.Tensor:
     return torch.clamp(s.base_pos[:, 2:3] - env.robot.nominal_base_height - heights, -1.0, 1.0)
 
 
+# physics draw features (6), base linear velocity (3). No trail-category one-hot (older
+# checkpoints had one): the scandots show the terrain, and a one-hot would tie an oracle to
+# the trail list it trained on (a hill trail mixes categories).
+PRIVILEGED_WIDTH = 9
+
+
 def privileged(env, obs: dict) -> torch.Tensor:
-    """Physics draw features (6), base linear velocity (base frame, 3), category one-hot."""
+    """Physics draw features (6) and base linear velocity (base frame, 3)."""
     return torch.cat([env.physics_features[env.sim.model_of_env],
-                      env.state.lin_vel_body.float(), env.category_onehot[env.category]], 1)
+                      env.state.lin_vel_body.float()], 1)
 
 
 def goal(env, obs: dict) -> torch.Tensor:
@@ -186,6 +192,9 @@ def info_terms() -> dict[tuple[str, str], ObsFn]:
         keys.FOOT_CONTACTS: lambda env, obs: env.state.feet_contact.sum(1),
         keys.UNSAFE_COLLISIONS: state_of("unsafe_contacts"),
         keys.LEVEL: lambda env, obs: env.level,
+        keys.RANDOMIZATION: lambda env, obs: torch.tensor(
+            [env.randomization.strength(env.global_steps), env.randomization.survival],
+            device=env.device).expand(env.num_envs, 2),
         keys.CATEGORY: lambda env, obs: env.category,
         keys.TILE: lambda env, obs: env.goals.tile,
         keys.WAYPOINT_COUNT: lambda env, obs: env.trails_t.count[env.goals.tile],

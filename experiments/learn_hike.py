@@ -1,0 +1,224 @@
+"""Learn to hike: the oracle from a flat-ground walker to every trail category, as a
+campaign of runs that each resume from the last one's committed checkpoint.
+
+    python experiments/learn_hike.py [--robot h1] [--seed 0] [--minutes 85] [--init PATH]
+    python experiments/learn_hike.py --evaluate [--robot h1] [--seed 0]   # benchmark snapshots
+    python experiments/learn_hike.py --plot [--robot h1] [--seed 0]
+
+Training (``trail=hike``: RandomMix, Ditch, Hurdle, Gap and Forest in one map, each robot
+its own category and level under the curriculum; randomisation brought in by the gate) starts
+from ``--init`` (default: the committed lean-loop H1 walker; ``none``: from scratch) and, when
+the run folder already holds ``oracle.pt``, resumes from it instead: a campaign is this command
+run again on a fresh clone after the previous run's files were committed. Every
+``--eval-every`` minutes of training it saves the actor to ``snapshots/`` (git-ignored) and
+runs the walk test of milestone (c) in-process; ``--evaluate`` then scores every snapshot not
+yet scored with the benchmark (robots placed along the trail, randomisation on) for (d) and
+(e). Milestones (frames and minutes of training; evaluation time excluded):
+
+  (c) >= 80 % of 16 robots walk >= 10 m on RandomMix level 0 with randomisation on;
+  (d) SR >= 50 % on RandomMix levels 0-2 (the benchmark, randomisation on);
+  (e) SR >= 70 % on RandomMix levels 0-4 and >= 50 % on each of Ditch, Hurdle, Gap, Forest.
+
+Writes experiments/results/learn_hike/<robot>-s<seed>[-tag]/: oracle.pt, train.csv,
+evals.csv (walk tests), bench.csv (benchmark per snapshot, category and level),
+milestones.json, summary.md, curve.png and (``--video``) videos of the final policy.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import shlex
+import sys
+import time
+from pathlib import Path
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import numpy as np  # noqa: E402
+import torch  # noqa: E402
+from learn_walk import compose_run, eval_env, read_evals, walk_test  # noqa: E402
+
+from legoh.train.oracle import train_oracle  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+OUT = ROOT / "experiments" / "results" / "learn_hike"
+WALKER = {"h1": ROOT / "experiments/results/learn_walk/h1-walk-s0-fast-c256-e3/oracle.pt"}
+# the lean loop of learn_walk (bfloat16 update, overlapped collection, 256-128-64 critic,
+# 3 epochs): the walker it starts from was trained with it
+LEAN = ["algo.update_precision=bfloat16", "collector.overlap=true",
+        "algo.critic_hidden=[256,128,64]", "algo.epochs=3"]
+CATEGORIES = ("randommix", "ditch", "hurdle", "gap", "forest")
+D_SR, E_SR_MIX, E_SR_CAT = 50.0, 70.0, 50.0
+
+
+def run_dir(args) -> Path:
+    return OUT / f"{args.robot}-s{args.seed}{'-' + args.tag if args.tag else ''}"
+
+
+def train(args) -> None:
+    out = run_dir(args)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "snapshots").mkdir(exist_ok=True)
+    init = args.init if args.init != "walker" else str(WALKER.get(args.robot, "none"))
+    extra = [f"algo.total_frames={args.frames}", f"algo.num_envs={args.envs}", *LEAN]
+    if init != "none":
+        extra.append(f"init={init}")
+    cfg = compose_run(args.robot, args.seed, "walk", "hike", [*extra, *args.overrides])
+    walk_env = eval_env(cfg, "randommix", True)
+    frames_per_it = cfg.algo.num_envs * cfg.algo.steps_per_env
+    resume = out / "oracle.pt"
+    rows = read_rows(out / "evals.csv")
+    it_ckpt = (int(torch.load(resume, map_location="cpu", weights_only=False)["iteration"])
+               if resume.exists() else 0)
+    rows = [r for r in rows if r["iteration"] <= it_ckpt]  # a killed run: its records to then
+    clock = {"train_s": 60.0 * rows[-1]["minutes"] if rows else 0.0,
+             "tick": time.perf_counter()}
+    clock["next_eval"] = clock["train_s"] + (60.0 * args.eval_every if rows else 0.0)
+    session_end = clock["train_s"] + 60.0 * args.minutes
+
+    def on_iteration(it: int, stats: dict, actor) -> bool:
+        now = time.perf_counter()
+        clock["train_s"] += now - clock["tick"]
+        stop = clock["train_s"] >= session_end
+        if clock["train_s"] >= clock["next_eval"] or stop:
+            clock["next_eval"] += 60.0 * args.eval_every
+            torch.save({"iteration": it, "frames": it * frames_per_it,
+                        "minutes": clock["train_s"] / 60.0, "actor": actor.state_dict()},
+                       out / "snapshots" / f"it{it:06d}.pt")
+            row = {"iteration": it, "frames": it * frames_per_it,
+                   "minutes": round(clock["train_s"] / 60.0, 2),
+                   "train_episode_s": stats["episode_frames"] * cfg.sim.dt * cfg.sim.decimation,
+                   "train_fell": stats["fell_frac"], "level_mean": stats["level_mean"],
+                   "randomization": stats.get("randomization", float("nan")),
+                   **{k: v for k, v in stats.items() if k.split("/")[0] in ("level", "fell")}}
+            row.update({f"c_{k}": v for k, v in walk_test(walk_env, actor).items()})
+            rows.append(row)
+            write_rows(out / "evals.csv", rows)
+            write_summary(out, args)
+            print(f"[learn_hike] it {it} {row['minutes']:.1f} min: level {row['level_mean']:.2f}"
+                  f", DR {row['randomization']:.2f}, (c) {row['c_walked_share']:.2f}", flush=True)
+        clock["tick"] = time.perf_counter()
+        return stop
+
+    hint = " ".join(["python", *map(shlex.quote, sys.argv)])  # rerun: it resumes from out
+    train_oracle(cfg, out, resume=str(resume) if resume.exists() else None,
+                 on_iteration=on_iteration, resume_hint=hint)
+    write_summary(out, args)
+
+
+# ----------------------------------------------------------------------------- records
+def read_rows(path: Path) -> list[dict]:
+    if not path.exists():
+        return []
+    with open(path) as f:
+        return [{k: float(v) for k, v in r.items()} for r in csv.DictReader(f)]
+
+
+def write_rows(path: Path, rows: list[dict]) -> None:
+    fields = list(dict.fromkeys(k for r in rows for k in r))
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=fields, restval="nan")
+        w.writeheader()
+        w.writerows(rows)
+
+
+def milestones(out: Path) -> dict:
+    """First snapshot (frames, minutes) meeting each milestone, from the records."""
+    found: dict[str, dict | None] = {"c": None, "d": None, "e": None}
+    for r in read_rows(out / "evals.csv"):
+        if found["c"] is None and r["c_walked_share"] >= 0.8:
+            found["c"] = {"frames": int(r["frames"]), "minutes": r["minutes"]}
+    for r in read_rows(out / "bench.csv"):
+        stamp = {"frames": int(r["frames"]), "minutes": r["minutes"]}
+        if found["d"] is None and r.get("d_sr", 0.0) >= D_SR:
+            found["d"] = stamp
+        cats = [r.get(f"sr_{c}", 0.0) for c in CATEGORIES[1:]]
+        if found["e"] is None and r.get("e_sr_mix", 0.0) >= E_SR_MIX and min(cats) >= E_SR_CAT:
+            found["e"] = stamp
+    return found
+
+
+def write_summary(out: Path, args) -> None:
+    found = milestones(out)
+    meta = {"robot": args.robot, "seed": args.seed, "milestones": found, "criteria": {
+        "c": ">= 80 % of 16 robots walk >= 10 m toward the terminus without falling, "
+             "RandomMix level 0, randomisation on, 30 s",
+        "d": f"benchmark SR >= {D_SR:.0f} % on RandomMix levels 0-2, randomisation on",
+        "e": f"SR >= {E_SR_MIX:.0f} % on RandomMix levels 0-4 and >= {E_SR_CAT:.0f} % on each "
+             "of Ditch, Hurdle, Gap, Forest"}}
+    (out / "milestones.json").write_text(json.dumps(meta, indent=2))
+    lines = [f"# learn_hike: {args.robot}, seed {args.seed}", ""]
+    for k, m in found.items():
+        lines.append(f"- ({k}) " + ("not reached" if m is None else
+                                    f"{m['frames']:,} frames, {m['minutes']:.1f} min"))
+    (out / "summary.md").write_text("\n".join(lines) + "\n")
+    plot(out)
+
+
+def plot(out: Path) -> None:
+    """Training levels and falls per category, randomisation, walk test, benchmark SR."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    if not (out / "evals.csv").exists():
+        return
+    e = read_evals(out)
+    x = e["frames"] / 1e6
+    fig, axes = plt.subplots(1, 4, figsize=(20, 4))
+    for i, c in enumerate(CATEGORIES):
+        if f"level/{c}" in e:
+            axes[0].plot(x, e[f"level/{c}"], color=f"C{i}", label=c)
+            axes[1].plot(x, e[f"fell/{c}"], color=f"C{i}")
+    axes[0].plot(x, e["level_mean"], "k--", label="all")
+    axes[1].plot(x, e["randomization"], "k:", label="randomisation strength")
+    axes[2].plot(x, 100 * e["c_walked_share"], "k", label="% walking >= 10 m")
+    axes[2].plot(x, 10 * e["c_distance_m"], "k--", label="10 x m toward the terminus")
+    axes[2].axhline(80, color="k", lw=0.5)
+    bench = read_rows(out / "bench.csv")
+    if bench:
+        bx = np.array([r["frames"] for r in bench]) / 1e6
+        axes[3].plot(bx, [r["d_sr"] for r in bench], "k", lw=2, label="(d) RandomMix 0-2")
+        for i, c in enumerate(CATEGORIES):
+            axes[3].plot(bx, [r.get(f"sr_{c}", np.nan) for r in bench], color=f"C{i}",
+                         label=f"{c} 0-4")
+        axes[3].axhline(D_SR, color="k", lw=0.5)
+    titles = ["training: mean terrain level per category", "training: falls / ended "
+              "episodes per category (dotted: randomisation strength)",
+              "(c) walk test, RandomMix L0 + randomisation", "benchmark SR (%), "
+              "randomisation on"]
+    for ax, t in zip(axes, titles, strict=True):
+        ax.set_title(t, fontsize=9)
+        ax.set_xlabel("frames (M)")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out / "curve.png", dpi=90)
+    plt.close(fig)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--robot", default="h1")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--minutes", type=float, default=85.0, help="training minutes now")
+    parser.add_argument("--frames", type=int, default=500_000_000, help="frame budget")
+    parser.add_argument("--envs", type=int, default=512, help="algo.num_envs")
+    parser.add_argument("--eval-every", type=float, default=6.0, help="training minutes")
+    parser.add_argument("--init", default="walker",
+                        help="walker (the committed learn_walk walker) | none | PATH")
+    parser.add_argument("--tag", default="", help="suffix of the run folder (a variant)")
+    parser.add_argument("--plot", action="store_true", help="redraw curve and summary")
+    parser.add_argument("overrides", nargs="*", help="Hydra overrides")
+    args = parser.parse_args()
+    if args.plot:
+        return write_summary(run_dir(args), args)
+    train(args)
+
+
+if __name__ == "__main__":
+    main()
