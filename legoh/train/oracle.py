@@ -168,8 +168,15 @@ def _train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None,
         print(f"[legoh] resumed from {resume} at iteration {runner.iteration}")
     elif cfg.init:
         init = resolve_checkpoint(cfg.init, cfg.robot.name)
-        warm_start(cfg, init, dims, runner.models)
-        print(f"[legoh] weights from {init} (init=); optimiser and curriculum start afresh")
+        state = warm_start(cfg, init, dims, runner.models)
+        # a fresh Adam's first steps move every weight by about lr: at the configured lr
+        # (1e-3) they undid a walker within 5 iterations (every episode a fall in < 1 s), so
+        # PPO starts from the lr its adaptive schedule had reached
+        lr = state.get("optimizers", {}).get("ppo", {}).get("param_groups", [{}])[0].get("lr")
+        for group in optimizer.param_groups:
+            group["lr"] = lr or group["lr"]
+        print(f"[legoh] weights from {init} (init=); a fresh optimiser at lr "
+              f"{optimizer.param_groups[0]['lr']:.2e}, curriculum from level 0")
 
     def update(batch) -> dict:
         clock = [time.perf_counter()]
