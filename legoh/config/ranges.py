@@ -105,6 +105,7 @@ RANGES: list[tuple[str, Range]] = [
                                                    NON_NEGATIVE_INTERVAL),
     ("env.randomization.base_mass_offset", INTERVAL),
     ("env.randomization.motor_strength", NON_NEGATIVE_INTERVAL),
+    ("env.randomization.push_interval_s", POSITIVE),  # 0 would push at every step
     ("env.randomization.*", NON_NEGATIVE),  # offsets, speeds, delays, step counts
     ("env.curriculum.*", NON_NEGATIVE),
     ("env.spawn_noise", NON_NEGATIVE), ("env.air_time_target", NON_NEGATIVE),
