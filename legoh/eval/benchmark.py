@@ -32,6 +32,7 @@ from tqdm import tqdm
 from legoh import keys
 from legoh.eval.metrics import (
     SIGNALS,
+    TC_RADIUS,
     RobotOutcomes,
     aggregate,
     distance_walked,
@@ -97,15 +98,19 @@ def make_eval_env(cfg: DictConfig, run: int = 0):
     return make_env(run_cfg, num_envs=robots, evaluation=True, **overrides)
 
 
-def rollout_level(env, actor, level: int) -> LevelRecord:
+def rollout_level(env, actor, level: int, tc_radius: float = TC_RADIUS) -> LevelRecord:
     """Every robot on ``level``; step the deterministic ``actor`` until each robot has ended
-    its first episode (at most the env's ``max_steps``, where it is truncated)."""
+    its first episode (at most the env's ``max_steps``, where it is truncated). TC counts
+    the expert waypoints ahead of each robot's spawn (its first goal index up to, not
+    including, the terminus) passed within ``tc_radius`` m."""
     n = env.num_envs
     env.level[:] = level
     td = env.reset()
     start = td[keys.BASE_POS].cpu().numpy().copy()
     tile = td[keys.TILE].cpu().numpy().copy()
     count = td[keys.WAYPOINT_COUNT].cpu().numpy().copy()
+    first = td[keys.WAYPOINT].cpu().numpy().copy()  # the goal index each robot starts with
+    progress_start = td[keys.PROGRESS].cpu().numpy().astype(float)
     signals = {s: [] for s in (*SIGNALS, "done")}
     pos = []
     ended = np.zeros(n, dtype=bool)
@@ -127,8 +132,10 @@ def rollout_level(env, actor, level: int) -> LevelRecord:
     last = np.where(arr["done"].any(axis=0), arr["done"].argmax(axis=0), t_len - 1)
     track = np.concatenate([start[None], np.stack(pos)])  # (T + 1, N, 3)
     paths = [track[: last[i] + 2, i] for i in range(n)]
+    ahead = [env.trails.waypoints[tile[i], first[i]: count[i] - 1] for i in range(n)]
     walked = distance_walked(start, track[last + 1, np.arange(n)], env.trails.terminus[tile])
-    out = robot_outcomes(waypoint_count=count, dt=env.dt, distance=walked, **arr)
+    out = robot_outcomes(dt=env.dt, distance=walked, progress_start=progress_start,
+                         paths=paths, waypoints=ahead, tc_radius=tc_radius, **arr)
     names = np.asarray(env.terrain.categories)[env.category.cpu().numpy()]
     return LevelRecord(level=level, outcomes=out, category=names, tile=tile, paths=paths,
                        steps=t_len)
