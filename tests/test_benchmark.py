@@ -12,9 +12,11 @@ from tensordict.nn import TensorDictModule
 
 from legoh import keys
 from legoh.checkpoint import CheckpointError, make_payload, save_checkpoint
+from legoh.envs.mdp.events import randomizing
 from legoh.eval.benchmark import (
     OVERALL,
     compare,
+    eval_env_settings,
     evaluate,
     make_eval_env,
     rollout_level,
@@ -34,6 +36,8 @@ TINY = ("trail=flat", "trail.levels=1", "trail.variants=1", "eval.robots=2", "ev
 def test_default_protocol_is_quick() -> None:
     ev = compose_config().eval
     assert ev.seconds == 30.0 and ev.runs >= 2 and list(ev.levels) == [0, 1, 2]
+    assert list(ev.spawn_remaining) == [2.0, 10.0] and ev.tc_radius == 0.3
+    assert ev.randomization is True
 
 
 def test_table8_is_the_papers_protocol() -> None:
@@ -41,6 +45,8 @@ def test_table8_is_the_papers_protocol() -> None:
     assert (ev.robots, ev.seconds, list(ev.levels), ev.variants, ev.runs) == (
         256, 30.0, [0, 1, 2, 3, 4], 5, 5)
     assert list(ev.categories) == []
+    assert (list(ev.spawn_remaining), ev.tc_radius, ev.randomization) == ([2.0, 10.0], 0.3,
+                                                                          True)
 
 
 def test_mistyped_eval_key_is_named() -> None:
@@ -67,6 +73,36 @@ def test_the_runs_seed_rules_the_evaluation_unless_eval_seed_is_set() -> None:
     assert eval_seed(compose_config(*TINY, "seed=987654", "eval.seed=3")) == (3, "eval.seed")
 
 
+def test_eval_env_settings_spawn_along_the_trail_and_randomise() -> None:
+    """Failed before with: KeyError 'spawn_remaining' (every robot at the trail start, 22 m
+    from the terminus) and no randomisation in an evaluation."""
+    _, _, env = eval_env_settings(compose_config(*TINY), 0)
+    rand = env["randomization"]
+    assert env["spawn_remaining"] == [2.0, 10.0]
+    assert (rand.enabled, rand.start_after_steps, rand.delay_after_steps) == (True, 0, 0)
+    _, _, old = eval_env_settings(compose_config(*TINY, "eval.spawn_remaining=null",
+                                                 "eval.randomization=false"), 0)
+    assert old["spawn_remaining"] is None and old["randomization"].enabled is False
+
+
+def test_eval_robots_stand_on_waypoints_with_the_path_left_in_range() -> None:
+    """The evaluation env puts each robot on an expert waypoint with 2-10 m of path left to
+    the terminus, its goal index at the next waypoint, randomisation already drawing."""
+    env = make_eval_env(compose_config(*TINY, "eval.robots=8"))
+    try:
+        td = env.reset()
+        t, tile = env.trails, td[keys.TILE].numpy()
+        goal = td[keys.WAYPOINT].numpy()
+        assert (goal >= 1).all() and (goal <= t.count[tile] - 1).all()
+        left = t.length[tile] - t.cum_length[tile, goal - 1]
+        assert ((left >= 2.0 - 1e-9) & (left <= 10.0 + 1e-9)).all()
+        offset = np.abs(td[keys.BASE_POS][:, :2].numpy() - t.waypoints[tile, goal - 1])
+        assert (offset <= env.cfg.spawn_noise + 1e-6).all()
+        assert randomizing(env) and env.action_delay.delay.max() <= 1
+    finally:
+        env.close()
+
+
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory: pytest.TempPathFactory) -> tuple:
     cfg = compose_config(*TINY)
@@ -84,7 +120,7 @@ def test_evaluation_writes_the_tables_and_picture(tiny: tuple) -> None:
         table = list(csv.reader(f))
     assert table[0] == ["category"] + [f"{column_title(m)} {s}" for m in METRICS
                                        for s in ("mean", "std")]
-    assert [row[0] for row in table[1:]] == ["flat", OVERALL]
+    assert [row[0] for row in table[1:]] == ["flat", OVERALL, "level 0"]  # per level too
     md = paths["markdown"].read_text(encoding="utf-8")
     assert "| flat |" in md and "| overall |" in md and "| level 0 |" in md
     assert paths["trajectories"].read_bytes()[:4] == b"\x89PNG"
@@ -95,7 +131,9 @@ def test_evaluation_results_are_per_category_and_bounded(tiny: tuple) -> None:
     assert list(result["rows"]) == ["flat", OVERALL] and list(result["levels"]) == ["level 0"]
     overall = result["rows"][OVERALL]
     assert set(overall) == set(METRICS)
-    assert 0.0 < overall["TTF"][0] <= 1.0 + 1e-9  # episodes last at most eval.seconds
+    for m in ("TTF", "T2R"):  # episodes last at most eval.seconds (NaN: no fall / reach)
+        assert np.isnan(overall[m][0]) or 0.0 < overall[m][0] <= 1.0 + 1e-9
+    assert 0.0 <= overall["FR"][0] <= 100.0
     assert 0.0 <= overall["SR"][0] <= 100.0 and overall["SR"][1] == 0.0  # one run: std 0
     assert 0 < result["steps"] <= 50  # 1 s at 50 Hz, stopped once every robot is done
 

@@ -120,6 +120,14 @@ def test_mistyped_key_in_a_yaml_file_fails(tmp_path: Path) -> None:
     ("env.command.speed=[1.0,0.2]", "env.command.speed=[1.0, 0.2] is out of range: "
                                     "env.command.speed must be [low, high] with low <= high"),
     ("env.curriculum.down=0.9", "env.curriculum.down=0.9 must not exceed env.curriculum.up"),
+    ("eval.spawn_remaining=[10.0,2.0]", "eval.spawn_remaining=[10.0, 2.0] is out of range: "
+                                        "eval.spawn_remaining must be [low, high] with low "
+                                        "<= high, each 0 <= x"),
+    ("eval.tc_radius=0", "eval.tc_radius=0.0 is out of range: eval.tc_radius must be 0 < x"),
+    # failed before with: DID NOT RAISE (0 s between pushes pushed at every step)
+    ("env.randomization.push_interval_s=0", "env.randomization.push_interval_s=0.0 is out of "
+                                            "range: env.randomization.push_interval_s must "
+                                            "be 0 < x"),
 ])
 def test_values_out_of_range_are_named(override: str, shown: str) -> None:
     """validate() names the key, the value and the range of a number out of range.

@@ -17,6 +17,8 @@ from torchrl.envs.utils import check_env_specs
 from legoh import keys
 from legoh.envs.curriculum import update_levels
 from legoh.envs.hiking_env import HikingEnv
+from legoh.envs.math3d import wrap_angle
+from legoh.envs.mdp.events import SPAWN_YAW_NOISE
 from legoh.envs.robots import CAMERA_NAME
 from legoh.envs.scene import Scene, build_scene
 from legoh.envs.terrain import build_terrain_map
@@ -151,6 +153,65 @@ def test_partial_reset_touches_only_masked_envs(make: EnvFactory) -> None:
     # ...and the reset envs' history holds only the reset and this step.
     assert not history[~keep, :-2].any()
     assert history[~keep, -2:].abs().sum(-1).gt(0).all()
+
+
+# --------------------------------------------------------------------------- spawn
+def spawn_of(td: TensorDictBase) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(tile, goal index, base xy, yaw) of each robot in a reset TensorDict."""
+    quat = td[keys.BASE_QUAT].numpy()  # (w, x, y, z), upright: a rotation about z
+    return (td[keys.TILE].numpy(), td[keys.WAYPOINT].numpy(), td[keys.BASE_POS][:, :2].numpy(),
+            2.0 * np.arctan2(quat[:, 3], quat[:, 0]))
+
+
+def test_spawn_along_the_trail_stands_robots_on_waypoints(make: EnvFactory) -> None:
+    """env.spawn_remaining=[2, 10] on the flat tile (waypoints 20, 18, ..., 2, 0 m from
+    the terminus): each robot stands on a waypoint 2-10 m from the terminus, faces the next
+    one, its goal index is that next one, and progress counts from the trail start.
+
+    Failed before with: every robot at the trail start, goal index 0."""
+    lo, hi = 2.0, 10.0
+    env = make(16, spawn_remaining=[lo, hi], spawn_noise=0.0)
+    tile, goal, xy, yaw = spawn_of(env.reset())
+    t = env.trails
+    on = goal - 1  # the waypoint stood on
+    assert (on >= 0).all() and (goal <= t.count[tile] - 1).all()
+    np.testing.assert_allclose(xy, t.waypoints[tile, on], atol=1e-6)
+    left = t.length[tile] - t.cum_length[tile, on]
+    assert ((left >= lo - 1e-9) & (left <= hi + 1e-9)).all()
+    assert len(set(on.tolist())) >= 3  # uniform over the five waypoints in range
+    np.testing.assert_array_equal(env.goals.index.numpy(), goal)
+    to_next = t.waypoints[tile, goal] - xy
+    heading = np.arctan2(to_next[:, 1], to_next[:, 0])
+    assert (np.abs(wrap_angle(torch.as_tensor(yaw - heading)).numpy())
+            <= SPAWN_YAW_NOISE + 1e-6).all()
+    progress = env.goals.progress(env.state.base_xy).numpy()
+    np.testing.assert_allclose(progress, 1.0 - left / t.length[tile], atol=1e-6)
+
+
+def test_spawn_along_the_trail_keeps_the_jitter(make: EnvFactory) -> None:
+    env = make(8, spawn_remaining=[2.0, 10.0])  # the default spawn_noise, 0.3 m
+    tile, goal, xy, _ = spawn_of(env.reset())
+    offset = np.abs(xy - env.trails.waypoints[tile, goal - 1])
+    assert (offset <= env.cfg.spawn_noise + 1e-6).all() and offset.max() > 0.01
+
+
+@pytest.mark.parametrize(("remaining", "left"), [([10.6, 11.0], 10.0), ([0.0, 0.5], 2.0),
+                                                 ([30.0, 40.0], 20.0)])
+def test_spawn_range_without_a_waypoint_takes_the_closest_never_the_terminus(
+        make: EnvFactory, remaining: list[float], left: float) -> None:
+    env = make(4, spawn_remaining=remaining, spawn_noise=0.0)
+    tile, goal, _, _ = spawn_of(env.reset())
+    t = env.trails
+    np.testing.assert_allclose(t.length[tile] - t.cum_length[tile, goal - 1], left, atol=1e-6)
+
+
+def test_spawn_at_the_trail_start_by_default(make: EnvFactory) -> None:
+    """Training (env.spawn_remaining unset) starts at the trail start, goal index 0."""
+    env = make(4)
+    assert env.cfg.spawn_remaining is None
+    tile, goal, xy, _ = spawn_of(env.reset())
+    assert (goal == 0).all()
+    assert (np.abs(xy - env.trails.start[tile, :2]) <= env.cfg.spawn_noise + 1e-6).all()
 
 
 # --------------------------------------------------------------------------- terminations

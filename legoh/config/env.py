@@ -171,6 +171,11 @@ class EnvConfig:
     min_base_height: float = 0.5  # fraction of the nominal base height above the ground
     history: int = 10  # proprioception history length
     spawn_noise: float = 0.3  # m, xy jitter of the spawn point
+    # m of expert path left to the terminus, [lo, hi]: each reset puts the robot on an
+    # expert waypoint whose remaining path lies in it (the one closest to it when none
+    # does; never the terminus), facing the next one. None: at the trail start (training).
+    # The curriculum's covered distance still counts from the trail start.
+    spawn_remaining: list[float] | None = None
     divergence_qvel: float = 1.0e3  # |qvel| above this counts as a diverged simulation
     # reward preset (REWARD_PRESETS): walk (default) | table6 (appendix Table 6 as written)
     reward_preset: str = "walk"

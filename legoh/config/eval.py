@@ -17,3 +17,11 @@ class EvalConfig:
     # run r uses seed + r for the terrain and the env; None follows the run's top-level
     # ``seed`` (one seed rules unless this is set)
     seed: int | None = None
+    # m of expert path left from each robot's spawn waypoint to the terminus, [lo, hi]
+    # (env.spawn_remaining): at the 0.8 m/s evaluation command a flawless walk of 2-10 m
+    # takes 2.5-12.5 s, mean 7.5 s, inside Table 8's T2R of 4.2-13.7 s; from the trail start
+    # (22 m) it would take 27.5 of the 30 s. None: every robot at the trail start
+    spawn_remaining: list[float] | None = field(default_factory=lambda: [2.0, 10.0])
+    tc_radius: float = 0.3  # m: TC counts a waypoint the torso passed within this
+    # Table 5's randomisation (physics draws, pushes, action delay) on from the first step
+    randomization: bool = True

@@ -89,6 +89,7 @@ RANGES: list[tuple[str, Range]] = [
     ("algo.*", COUNT),  # num_envs, steps, frames, epochs, minibatches, every-N, threads
     # eval
     ("eval.seconds", POSITIVE), ("eval.levels", NON_NEGATIVE), ("eval.seed", NON_NEGATIVE),
+    ("eval.spawn_remaining", NON_NEGATIVE_INTERVAL), ("eval.tc_radius", POSITIVE),
     ("eval.*", COUNT),
     # collector
     ("collector.workers", COUNT), ("collector.init.num_cpus", COUNT),
@@ -107,9 +108,11 @@ RANGES: list[tuple[str, Range]] = [
     ("env.randomization.motor_strength", NON_NEGATIVE_INTERVAL),
     ("env.randomization.gate", FRACTION), ("env.randomization.gate_smoothing", FRACTION),
     ("env.randomization.ramp_steps", COUNT),
+    ("env.randomization.push_interval_s", POSITIVE),  # 0 would push at every step
     ("env.randomization.*", NON_NEGATIVE),  # offsets, speeds, delays, step counts
     ("env.curriculum.*", NON_NEGATIVE),
-    ("env.spawn_noise", NON_NEGATIVE), ("env.air_time_target", NON_NEGATIVE),
+    ("env.spawn_noise", NON_NEGATIVE), ("env.spawn_remaining", NON_NEGATIVE_INTERVAL),
+    ("env.air_time_target", NON_NEGATIVE),
     ("env.edge_min_level", NON_NEGATIVE),
     ("env.command.*", NON_NEGATIVE), ("env.gait.swing_height", NON_NEGATIVE),
     ("env.*", POSITIVE),  # durations, radii, angles, clips, speeds, sigmas

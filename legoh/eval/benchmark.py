@@ -3,16 +3,19 @@
 For each run r (terrain and env seeded with ``s + r``, ``s`` = ``eval.seed`` when set, else
 the run's ``seed``: :func:`eval_seed`) an evaluation env is built
 once: ``eval.robots`` robots spread round-robin over the trail's categories, the terminus
-reach radius of evaluation (0.89 m), episodes of ``eval.seconds``, curriculum off. For each
-level in ``eval.levels`` every robot is put on that level (a random one of ``eval.variants``
+reach radius of evaluation (0.89 m), episodes of ``eval.seconds``, curriculum off, each
+robot spawned on an expert waypoint with ``eval.spawn_remaining`` m of path left (null: at
+the trail start), Table 5's randomisation on from the first step unless
+``eval.randomization=false`` (:func:`eval_randomization`). For each level in
+``eval.levels`` every robot is put on that level (a random one of ``eval.variants``
 variants each) and the deterministic policy runs until every robot has ended its first
 episode (reach, fall or timeout; only the first episode counts, ``docs/metrics.md``), at
 most ``seconds / dt`` steps. A run's metrics pool the robots of all its levels, per
-category and overall; tables give mean ± std over runs.
+category and overall, and per level; tables give mean ± std over runs.
 
-Files written to ``out_dir`` per evaluation: ``benchmark.md`` (per category and overall,
-then per level), ``benchmark.csv`` (per category and overall) and ``trajectories.png``
-(first run, hardest level, one panel per category).
+Files written to ``out_dir`` per evaluation: ``benchmark.md`` and ``benchmark.csv`` (per
+category and overall, then per level: rows ``level <l>``) and ``trajectories.png`` (first
+run, hardest level, one panel per category).
 """
 
 from __future__ import annotations
@@ -30,8 +33,10 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 from tqdm import tqdm
 
 from legoh import keys
+from legoh.config.env import RandomizationConfig, Schedule
 from legoh.eval.metrics import (
     SIGNALS,
+    TC_RADIUS,
     RobotOutcomes,
     aggregate,
     distance_walked,
@@ -80,13 +85,27 @@ def run_config(cfg: DictConfig, run: int) -> DictConfig:
     return OmegaConf.merge(cfg, {"seed": eval_seed(cfg)[0] + run, "trail": trail})
 
 
+def eval_randomization(cfg: DictConfig) -> RandomizationConfig:
+    """The env's Table 5 randomisation during an evaluation: ``eval.randomization`` turns
+    it on or off; the policy under test is trained, so its schedule is open from the
+    first step (physics draws, pushes and action delays)."""
+    rand = OmegaConf.to_object(cfg.env.randomization)
+    return dataclasses.replace(rand, enabled=bool(cfg.eval.randomization),
+                               schedule=Schedule.steps, start_after_steps=0,
+                               delay_after_steps=0)
+
+
 def eval_env_settings(cfg: DictConfig, run: int) -> tuple[DictConfig, int, dict]:
     """(config, robots, env overrides) of run ``run``'s evaluation env: curriculum off,
-    episodes of ``eval.seconds`` (the evaluation reach radius comes with ``evaluation``)."""
+    episodes of ``eval.seconds``, spawns ``eval.spawn_remaining`` m of path from the
+    terminus, :func:`eval_randomization` (the evaluation reach radius comes with
+    ``evaluation``)."""
     ev = cfg.eval
     curriculum = dataclasses.replace(OmegaConf.to_object(cfg.env.curriculum), enabled=False)
+    spawn = None if ev.spawn_remaining is None else [float(x) for x in ev.spawn_remaining]
     return (run_config(cfg, run), ev.robots,
-            {"episode_length_s": float(ev.seconds), "curriculum": curriculum})
+            {"episode_length_s": float(ev.seconds), "curriculum": curriculum,
+             "spawn_remaining": spawn, "randomization": eval_randomization(cfg)})
 
 
 def make_eval_env(cfg: DictConfig, run: int = 0):
@@ -97,15 +116,19 @@ def make_eval_env(cfg: DictConfig, run: int = 0):
     return make_env(run_cfg, num_envs=robots, evaluation=True, **overrides)
 
 
-def rollout_level(env, actor, level: int) -> LevelRecord:
+def rollout_level(env, actor, level: int, tc_radius: float = TC_RADIUS) -> LevelRecord:
     """Every robot on ``level``; step the deterministic ``actor`` until each robot has ended
-    its first episode (at most the env's ``max_steps``, where it is truncated)."""
+    its first episode (at most the env's ``max_steps``, where it is truncated). TC counts
+    the expert waypoints ahead of each robot's spawn (its first goal index up to, not
+    including, the terminus) passed within ``tc_radius`` m."""
     n = env.num_envs
     env.level[:] = level
     td = env.reset()
     start = td[keys.BASE_POS].cpu().numpy().copy()
     tile = td[keys.TILE].cpu().numpy().copy()
     count = td[keys.WAYPOINT_COUNT].cpu().numpy().copy()
+    first = td[keys.WAYPOINT].cpu().numpy().copy()  # the goal index each robot starts with
+    progress_start = td[keys.PROGRESS].cpu().numpy().astype(float)
     signals = {s: [] for s in (*SIGNALS, "done")}
     pos = []
     ended = np.zeros(n, dtype=bool)
@@ -127,8 +150,10 @@ def rollout_level(env, actor, level: int) -> LevelRecord:
     last = np.where(arr["done"].any(axis=0), arr["done"].argmax(axis=0), t_len - 1)
     track = np.concatenate([start[None], np.stack(pos)])  # (T + 1, N, 3)
     paths = [track[: last[i] + 2, i] for i in range(n)]
+    ahead = [env.trails.waypoints[tile[i], first[i]: count[i] - 1] for i in range(n)]
     walked = distance_walked(start, track[last + 1, np.arange(n)], env.trails.terminus[tile])
-    out = robot_outcomes(waypoint_count=count, dt=env.dt, distance=walked, **arr)
+    out = robot_outcomes(dt=env.dt, distance=walked, progress_start=progress_start,
+                         paths=paths, waypoints=ahead, tc_radius=tc_radius, **arr)
     names = np.asarray(env.terrain.categories)[env.category.cpu().numpy()]
     return LevelRecord(level=level, outcomes=out, category=names, tile=tile, paths=paths,
                        steps=t_len)
@@ -200,7 +225,8 @@ def evaluate(cfg: DictConfig, actor, out_dir: str | Path, label: str = "policy",
                     records = []
                     for level in ev.levels:
                         bar.set_postfix(run=r, level=level)
-                        records.append(rollout_level(env, actor, int(level)))
+                        records.append(rollout_level(env, actor, int(level),
+                                                     float(ev.tc_radius)))
                         steps += records[-1].steps
                         bar.update()
                     runs.append(run_metrics(records))
@@ -224,7 +250,7 @@ def evaluate(cfg: DictConfig, actor, out_dir: str | Path, label: str = "policy",
     paths["markdown"] = out_dir / "benchmark.md"
     paths["markdown"].write_text(to_markdown(rows, "Category", title) + "\n"
                                  + to_markdown(levels, "Level", "Per level"), encoding="utf-8")
-    paths["csv"] = write_csv(out_dir / "benchmark.csv", rows, label="category")
+    paths["csv"] = write_csv(out_dir / "benchmark.csv", {**rows, **levels}, label="category")
     return {"label": label, "rows": rows, "levels": levels, "runs": runs, "paths": paths,
             "wall_s": time.perf_counter() - t0, "steps": steps}
 

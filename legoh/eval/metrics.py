@@ -1,24 +1,28 @@
-"""The paper's benchmark metrics (SR, TC, TR, MEV, TTF, T2R), and our DW, as plain functions.
+"""The paper's benchmark metrics (SR, TC, TR, MEV, TTF, T2R), and our DW and FR, as plain
+functions.
 
 Formulas and the choices the paper leaves open are in ``docs/metrics.md``. In short, each
 robot's **first episode** in the record counts (the steps up to and including its first
 ``done``; a robot never done counts as a timeout at the record's end), and
 
 - SR  (%)  = 100 * mean_n success_n, success_n = reached at the episode's last step
-- TC  (%)  = 100 * mean_n passed_n / count_n, passed_n = max waypoint index reached in the
-             episode (count_n for a success)
-- TR  (%)  = 100 * mean_n final progress_n (1 for a success)
+- TC  (%)  = 100 * mean_n (expert waypoints ahead of the spawn, terminus excluded, that the
+             torso's xy path passed within ``tc_radius``) / (waypoints ahead); robots with
+             none ahead, and records without paths, are left out (NaN)
+- TR  (%)  = 100 * mean_n (progress_end - progress_start) / (1 - progress_start), clipped
+             to [0, 1] (1 for a success): the share of the path from the spawn covered
 - MEV (%)  = 100 * (sum edge foot-contacts + sum unsafe-collision steps)
                   / (sum foot-contacts + sum unsafe-collision steps), pooled over robots
-- TTF (s)  = mean_n episode duration_n (the time of the fall, or of the reach, or the
-             episode length for robots that neither fall nor reach)
+- TTF (s)  = mean over robots that fell of the time of the fall (NaN if none fell)
 - T2R (s)  = mean over successful robots of the episode duration (NaN if none succeeded)
 - DW  (m)  = mean_n distance walked toward the terminus: |start_n - terminus_n| -
              |end_n - terminus_n| in xy (NaN when the record has no positions)
+- FR  (%)  = 100 * mean_n fall_n: falls, so a policy that never falls (TTF n/a) is scored
 
 Inputs are per-step arrays of shape (T, N): the ``("next", "info", ...)`` signals of each
-step (the state the step led to, before any auto-reset) and ``("next", "done")``; DW
-also needs each robot's start and end positions (:func:`distance_walked`).
+step (the state the step led to, before any auto-reset) and ``("next", "done")``; TC also
+needs each robot's path and the waypoints ahead of it (:func:`trail_completion`), TR each
+robot's progress at the reset, DW its start and end positions (:func:`distance_walked`).
 """
 
 from __future__ import annotations
@@ -30,12 +34,15 @@ from pathlib import Path
 
 import numpy as np
 
-METRICS = ("SR", "TC", "TR", "MEV", "TTF", "T2R", "DW")
-UNITS = {"SR": "%", "TC": "%", "TR": "%", "MEV": "%", "TTF": "s", "T2R": "s", "DW": "m"}
+# the paper's six in Table 8's order, then ours
+METRICS = ("SR", "TC", "TR", "MEV", "TTF", "T2R", "DW", "FR")
+UNITS = {"SR": "%", "TC": "%", "TR": "%", "MEV": "%", "TTF": "s", "T2R": "s", "DW": "m",
+         "FR": "%"}
 HIGHER_IS_BETTER = {"SR": True, "TC": True, "TR": True, "MEV": False, "TTF": True,
-                    "T2R": False, "DW": True}
-SIGNALS = ("reached", "fell", "waypoint", "progress", "edge_contacts", "foot_contacts",
+                    "T2R": False, "DW": True, "FR": False}
+SIGNALS = ("reached", "fell", "progress", "edge_contacts", "foot_contacts",
            "unsafe_collisions")
+TC_RADIUS = 0.3  # m: a waypoint counts as passed within this of the torso (eval.tc_radius)
 
 
 def column_title(metric: str) -> str:
@@ -50,8 +57,8 @@ class RobotOutcomes:
     success: np.ndarray  # bool: reached the terminus
     fall: np.ndarray  # bool: ended by a fall (and not by reaching)
     duration: np.ndarray  # s: time from the start to the episode's end
-    completion: np.ndarray  # [0, 1]: expert waypoints passed / waypoints of the trail
-    traverse: np.ndarray  # [0, 1]: final progress along the trail (1 for a success)
+    completion: np.ndarray  # [0, 1]: waypoints ahead passed / waypoints ahead (NaN: none)
+    traverse: np.ndarray  # [0, 1]: share of the path from the spawn covered (1: success)
     violations: np.ndarray  # edge foot-contacts + unsafe-collision steps
     contacts: np.ndarray  # foot-contacts + unsafe-collision steps
     distance: np.ndarray  # m: distance walked toward the terminus (NaN: no positions)
@@ -75,30 +82,92 @@ def distance_walked(start_xy: np.ndarray, end_xy: np.ndarray, terminus_xy: np.nd
     return np.linalg.norm(goal - start, axis=-1) - np.linalg.norm(goal - end, axis=-1)
 
 
-def robot_outcomes(*, reached: np.ndarray, fell: np.ndarray, waypoint: np.ndarray,
-                   progress: np.ndarray, edge_contacts: np.ndarray,
-                   foot_contacts: np.ndarray, unsafe_collisions: np.ndarray,
-                   done: np.ndarray, waypoint_count: np.ndarray | int, dt: float,
-                   distance: np.ndarray | None = None) -> RobotOutcomes:
+def waypoints_passed(path_xy: np.ndarray, waypoints_xy: np.ndarray, radius: float
+                     ) -> np.ndarray:
+    """Which waypoints (W,) bool the path came within ``radius`` of, measured to the
+    path's segments (so a fast step between two samples cannot jump over a waypoint).
+
+    Args:
+        path_xy: (T, >=2) torso positions in order, world frame, m (only x, y are read).
+        waypoints_xy: (W, >=2) world frame, m. radius: m.
+    """
+    wp = np.asarray(waypoints_xy, dtype=float)
+    path = np.asarray(path_xy, dtype=float)
+    if wp.size == 0 or path.size == 0:
+        return np.zeros(len(wp), dtype=bool)
+    wp, path = wp[:, :2], path[:, :2]
+    a, ab = path[:-1], np.diff(path, axis=0)  # (S, 2) segments; none for one point
+    if len(ab) == 0:
+        a, ab = path, np.zeros_like(path)
+    rel = wp[:, None, :] - a[None]  # (W, S, 2)
+    frac = np.clip((rel * ab).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-12), 0.0, 1.0)
+    gap = np.linalg.norm(rel - frac[..., None] * ab, axis=-1)  # (W, S) to each segment
+    return gap.min(axis=1) <= radius
+
+
+def trail_completion(paths: Sequence[np.ndarray], waypoints: Sequence[np.ndarray],
+                     radius: float = TC_RADIUS) -> np.ndarray:
+    """Per robot, the share of its counted waypoints that its torso passed within
+    ``radius`` (:func:`waypoints_passed`); NaN for a robot with none to count.
+
+    Args:
+        paths: N arrays (T_n, >=2), each robot's torso path over its first episode, spawn
+            first, world frame, m.
+        waypoints: N arrays (W_n, 2), the expert waypoints to count for each robot: those
+            ahead of its spawn, the terminus excluded (reaching it is SR).
+        radius: m.
+
+    Returns:
+        (N,) float in [0, 1] or NaN.
+    """
+    if len(paths) != len(waypoints):
+        raise ValueError(f"one path and one waypoint list per robot, got {len(paths)} "
+                         f"paths and {len(waypoints)} waypoint lists")
+    return np.array([waypoints_passed(p, w, radius).mean() if len(w) else np.nan
+                     for p, w in zip(paths, waypoints, strict=True)], dtype=float)
+
+
+def traverse_rate(progress_end: np.ndarray, progress_start: np.ndarray | float,
+                  success: np.ndarray) -> np.ndarray:
+    """Share (N,) of the path from each robot's spawn to the terminus it covered:
+    ``(end - start) / (1 - start)`` clipped to [0, 1], 1 for a success. Progress is the
+    fraction of the whole trail's path length from the trail start (``info/progress``)."""
+    end = np.asarray(progress_end, dtype=float)
+    start = np.broadcast_to(np.asarray(progress_start, dtype=float), end.shape)
+    share = (end - start) / np.maximum(1.0 - start, 1e-9)
+    return np.where(success, 1.0, np.clip(share, 0.0, 1.0))
+
+
+def robot_outcomes(*, reached: np.ndarray, fell: np.ndarray, progress: np.ndarray,
+                   edge_contacts: np.ndarray, foot_contacts: np.ndarray,
+                   unsafe_collisions: np.ndarray, done: np.ndarray, dt: float,
+                   distance: np.ndarray | None = None,
+                   progress_start: np.ndarray | float | None = None,
+                   paths: Sequence[np.ndarray] | None = None,
+                   waypoints: Sequence[np.ndarray] | None = None,
+                   tc_radius: float = TC_RADIUS) -> RobotOutcomes:
     """Per-robot outcomes of each robot's first episode.
 
     Args:
-        reached, fell, done: (T, N) bool. waypoint: (T, N) int, index of the current expert
-            waypoint (= waypoints passed). progress: (T, N) float in [0, 1].
+        reached, fell, done: (T, N) bool. progress: (T, N) float in [0, 1], fraction of
+            the trail's path from the trail start.
         edge_contacts, foot_contacts: (T, N) int, feet in contact (on an edge / at all).
-        unsafe_collisions: (T, N) int, non-foot bodies touching the world.
-        waypoint_count: (N,) or scalar, waypoints of each robot's trail (the terminus is
-            the last one). dt: policy step, s.
+        unsafe_collisions: (T, N) int, non-foot bodies touching the world. dt: policy
+            step, s.
         distance: (N,) m, :func:`distance_walked` of each robot's first episode; the
             signals carry no positions, so without it DW is NaN.
+        progress_start: (N,) (or scalar) progress at the reset; None: 0, the trail start.
+        paths, waypoints: :func:`trail_completion`'s inputs (each robot's torso path over
+            its first episode, the waypoints ahead of its spawn); without both TC is NaN.
+        tc_radius: m, :func:`trail_completion`'s radius.
     """
-    arrs = [np.asarray(a) for a in (reached, fell, waypoint, progress, edge_contacts,
+    arrs = [np.asarray(a) for a in (reached, fell, progress, edge_contacts,
                                     foot_contacts, unsafe_collisions, done)]
     shape = arrs[0].shape
     if len(shape) != 2 or any(a.shape != shape for a in arrs):
         raise ValueError(f"all signals must share one (T, N) shape, got "
                          f"{[a.shape for a in arrs]}")
-    reached, fell, waypoint, progress, edge, feet, unsafe, done = arrs
+    reached, fell, progress, edge, feet, unsafe, done = arrs
     t_len, n = shape
     done = done.astype(bool)
     ended = done.any(axis=0)
@@ -107,10 +176,13 @@ def robot_outcomes(*, reached: np.ndarray, fell: np.ndarray, waypoint: np.ndarra
     cols = np.arange(n)
     success = reached.astype(bool)[last, cols]
     fall = fell.astype(bool)[last, cols] & ended & ~success
-    count = np.broadcast_to(np.asarray(waypoint_count), (n,)).astype(float)
-    passed = np.where(in_episode, waypoint, 0).max(axis=0)
-    completion = np.where(success, 1.0, np.clip(passed / np.maximum(count, 1.0), 0.0, 1.0))
-    traverse = np.where(success, 1.0, np.clip(progress[last, cols], 0.0, 1.0))
+    completion = (np.full(n, np.nan) if paths is None or waypoints is None
+                  else trail_completion(paths, waypoints, tc_radius))
+    if completion.shape != (n,):
+        raise ValueError(f"paths and waypoints must hold one entry per robot ({n}), got "
+                         f"{completion.shape[0]}")
+    traverse = traverse_rate(progress[last, cols], 0.0 if progress_start is None
+                             else progress_start, success)
     unsafe_steps = np.where(in_episode, unsafe > 0, False).sum(axis=0)
     violations = np.where(in_episode, edge, 0).sum(axis=0) + unsafe_steps
     contacts = np.where(in_episode, feet, 0).sum(axis=0) + unsafe_steps
@@ -121,40 +193,47 @@ def robot_outcomes(*, reached: np.ndarray, fell: np.ndarray, waypoint: np.ndarra
                                    else np.broadcast_to(np.asarray(distance, float), (n,))))
 
 
+def _mean(x: np.ndarray) -> float:
+    """Mean of the finite values; NaN when there are none."""
+    x = x[np.isfinite(x)]
+    return float(x.mean()) if x.size else float("nan")
+
+
 def aggregate(out: RobotOutcomes, select: np.ndarray | None = None) -> dict[str, float]:
     """Metric -> value over the robots in ``select`` ((N,) bool; all when None)."""
     sel = np.ones_like(out.success, dtype=bool) if select is None else np.asarray(select, bool)
     if not sel.any():
         return dict.fromkeys(METRICS, float("nan"))
     contacts = out.contacts[sel].sum()
-    wins = out.success & sel
     return {
         "SR": 100.0 * out.success[sel].mean(),
-        "TC": 100.0 * out.completion[sel].mean(),
+        "TC": 100.0 * _mean(out.completion[sel]),
         "TR": 100.0 * out.traverse[sel].mean(),
         "MEV": 100.0 * out.violations[sel].sum() / contacts if contacts > 0 else 0.0,
-        "TTF": float(out.duration[sel].mean()),
-        "T2R": float(out.duration[wins].mean()) if wins.any() else float("nan"),
-        "DW": float(out.distance[sel].mean()),
+        "TTF": _mean(out.duration[out.fall & sel]),
+        "T2R": _mean(out.duration[out.success & sel]),
+        "DW": _mean(out.distance[sel]),
+        "FR": 100.0 * out.fall[sel].mean(),
     }
 
 
-def episode_metrics(*, waypoint_count: np.ndarray | int, dt: float, groups=None,
-                    **signals: np.ndarray) -> dict:
-    """The metrics of one run (DW is NaN: the signals carry no positions).
+def episode_metrics(*, dt: float, groups=None, **inputs) -> dict:
+    """The metrics of one run.
 
     Args:
-        waypoint_count, dt, signals: as :func:`robot_outcomes` (``reached``, ``fell``,
-            ``waypoint``, ``progress``, ``edge_contacts``, ``foot_contacts``,
-            ``unsafe_collisions``, ``done``; each (T, N)).
+        dt, inputs: as :func:`robot_outcomes`: the signals ``reached``, ``fell``,
+            ``progress``, ``edge_contacts``, ``foot_contacts``, ``unsafe_collisions``,
+            ``done`` (each (T, N)), and optionally ``distance`` (DW), ``progress_start``
+            (TR from the spawn), ``paths`` and ``waypoints`` (TC). From the signals alone
+            TC and DW are NaN and TR counts from the trail start.
         groups: optional (N,) labels (for example trail category names): then the result
             is ``{label: metrics}`` per label, as in the paper's Table 8.
 
     Returns:
-        ``{"SR": %, "TC": %, "TR": %, "MEV": %, "TTF": s, "T2R": s, "DW": m}`` (or one per
-        group).
+        ``{"SR": %, "TC": %, "TR": %, "MEV": %, "TTF": s, "T2R": s, "DW": m, "FR": %}``
+        (or one per group).
     """
-    out = robot_outcomes(waypoint_count=waypoint_count, dt=dt, **signals)
+    out = robot_outcomes(dt=dt, **inputs)
     if groups is None:
         return aggregate(out)
     groups = np.asarray(groups)
@@ -181,8 +260,8 @@ def signals_from_rollout(td, time_dim: int = -1) -> dict[str, np.ndarray]:
 def summarize(runs: Sequence[Mapping[str, float]]) -> dict[str, tuple[float, float]]:
     """Mean and sample std (ddof=1; 0 for a single run) of each metric over runs.
 
-    NaN values (T2R of a run with no success, DW of a record without positions) are left
-    out of that metric's statistics.
+    NaN values (T2R of a run with no success, TTF of a run with no fall, TC and DW of a
+    record without paths) are left out of that metric's statistics.
     """
     result = {}
     for m in METRICS:
@@ -206,7 +285,7 @@ def _cell(mean: float, std: float, digits: int) -> str:
 def to_markdown(rows: Rows, label: str = "Method", title: str | None = None,
                 digits: int = 2) -> str:
     """A Markdown table: one row per key of ``rows`` (methods or categories), columns
-    SR, TC, TR, MEV, TTF, T2R, DW as ``mean ± std`` with the better direction in the header."""
+    :data:`METRICS` as ``mean ± std`` with the better direction in the header."""
     lines = [f"**{title}**", ""] if title else []
     lines.append("| " + " | ".join([label, *map(column_title, METRICS)]) + " |")
     lines.append("|" + "---|" * (len(METRICS) + 1))

@@ -121,17 +121,50 @@ def curriculum(env, ids: torch.Tensor) -> None:
                                     env.terrain.levels, env.gen, cur.up, cur.down)
 
 
+def spawn_waypoint(env, tiles: torch.Tensor, remaining: list[float]) -> torch.Tensor:
+    """Index (K,) of the expert waypoint to spawn on for each of ``tiles`` (K,): uniform
+    among the tile's waypoints whose remaining path to the terminus (m) lies in
+    ``remaining`` = [lo, hi], else among those closest to that range; never the terminus.
+    -1 for a tile whose only waypoint is its terminus (spawn at the trail start)."""
+    t = env.trails_t
+    width = t.waypoints.shape[1]
+    left = t.length[tiles, None] - t.cum_length[tiles]  # (K, W) m of path still to walk
+    allowed = torch.arange(width, device=env.device)[None] < (t.count[tiles, None] - 1)
+    lo, hi = remaining
+    miss = torch.where(allowed, torch.clamp(torch.maximum(lo - left, left - hi), min=0.0),
+                       torch.inf)  # (K, W) m outside [lo, hi]; inf: not a spawn point
+    best = allowed & (miss <= miss.min(1, keepdim=True).values + 1e-6)
+    score = uniform(env, 0.0, 1.0, len(tiles), width)
+    pick = torch.where(best, score, -1.0).argmax(1)  # uniform among the best
+    return torch.where(allowed.any(1), pick, -1)
+
+
 def spawn(env, ids: torch.Tensor) -> None:
     """A new tile of the env's category and level, a jittered start pose on it, the
-    default joint pose, and the physics draw (nominal until the schedule starts)."""
+    default joint pose, and the physics draw (nominal until the schedule starts).
+
+    The start pose: the trail start, facing along the trail; with ``env.spawn_remaining``
+    an expert waypoint (:func:`spawn_waypoint`, safe ground by construction) facing the
+    next one, whose index the goals term starts from.
+    """
     k, tm, t = len(ids), env.terrain, env.trails_t
     variant = torch.randint(0, tm.variants, (k,), generator=env.gen, device=env.device)
     tiles = (env.category[ids] * tm.levels + env.level[ids]) * tm.variants + variant
     env.goals.tile[ids] = tiles
-    start = t.start[tiles].clone()
+    start, heading = t.start[tiles].clone(), t.start_yaw[tiles]
+    first = torch.zeros(k, dtype=torch.int64, device=env.device)
+    if env.cfg.spawn_remaining is not None:
+        at = spawn_waypoint(env, tiles, env.cfg.spawn_remaining)
+        on, i = at >= 0, at.clamp(min=0)
+        here = t.waypoints[tiles, i]
+        ahead = t.waypoints[tiles, (i + 1).clamp(max=t.waypoints.shape[1] - 1)] - here
+        start[:, :2] = torch.where(on[:, None], here, start[:, :2])
+        heading = torch.where(on, torch.atan2(ahead[:, 1], ahead[:, 0]), heading)
+        first = torch.where(on, at + 1, first)
+    env.goals.start[ids] = first
     start[:, :2] += uniform(env, -1.0, 1.0, k, 2) * env.cfg.spawn_noise
     start[:, 2] = env.ground.bilinear(start[:, :2]) + env.scene.stand_height + SPAWN_LIFT
-    yaw = t.start_yaw[tiles] + uniform(env, -SPAWN_YAW_NOISE, SPAWN_YAW_NOISE, k)
+    yaw = heading + uniform(env, -SPAWN_YAW_NOISE, SPAWN_YAW_NOISE, k)
     qpos = env.qpos0.expand(k, -1).clone()
     qpos[:, 0:3] = start
     qpos[:, 3], qpos[:, 6] = torch.cos(yaw / 2), torch.sin(yaw / 2)

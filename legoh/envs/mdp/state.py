@@ -211,12 +211,18 @@ class Memory:
 
 
 class Goals:
-    """Index of each env's current expert waypoint, advanced when the robot passes it."""
+    """Index of each env's current expert waypoint, advanced when the robot passes it.
+
+    ``start`` (N,) is the index an episode begins with: 0 at the trail start; the spawn
+    event sets it to the next waypoint when it puts a robot on the trail
+    (``env.spawn_remaining``), before :meth:`reset` copies it into ``index``.
+    """
 
     def __init__(self, n: int, trails: TrailTable, radius: float, device: torch.device
                  ) -> None:
         self.trails, self.radius = trails, radius
         self.index = torch.zeros(n, dtype=torch.int64, device=device)
+        self.start = torch.zeros(n, dtype=torch.int64, device=device)
         self.tile = torch.zeros(n, dtype=torch.int64, device=device)
 
     def last(self) -> torch.Tensor:
@@ -244,7 +250,7 @@ class Goals:
         return torch.clamp(done / torch.clamp(t.length[self.tile], min=1e-6), 0.0, 1.0)
 
     def reset(self, ids: torch.Tensor) -> None:
-        self.index[ids] = 0
+        self.index[ids] = self.start[ids]
 
 
 def gait_phase(steps: torch.Tensor, dt: float, period: float, feet: int) -> torch.Tensor:
