@@ -52,7 +52,7 @@ def test_paper_head_stays_selectable() -> None:
 
 def test_schedule_counts_vectorised_steps() -> None:
     # Fault 4: global_steps grew by num_envs per step, so the delay switched on 64x early.
-    cfg = cfg_of("env.randomization.delay_after_steps=10",
+    cfg = cfg_of("env.randomization.schedule=steps", "env.randomization.delay_after_steps=10",
                  "env.randomization.start_after_steps=5")
     env = make_env(cfg, num_envs=8)
     td = env.reset()
