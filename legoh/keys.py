@@ -47,7 +47,8 @@ EDGE_CONTACTS = ("info", "edge_contacts")  # int: feet in contact on a terrain e
 FOOT_CONTACTS = ("info", "foot_contacts")  # int: feet in contact
 UNSAFE_COLLISIONS = ("info", "unsafe_collisions")  # int: non-foot bodies touching the world
 LEVEL = ("info", "level")  # int: the env's terrain level
-# (2,) float, the same for every env: randomisation strength s and the gate's survival EMA
+# (3,) float, the same for every env: randomisation strength s and the gate's counts of
+# recently ended episodes that were not falls and of all (legoh.envs.mdp.events)
 RANDOMIZATION = ("info", "randomization")
 CATEGORY = ("info", "category")  # int: index of the env's trail category
 TILE = ("info", "tile")  # int: index of the env's tile in the terrain map

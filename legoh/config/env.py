@@ -95,8 +95,8 @@ class RandomizationConfig:
     env steps a randomised pool member with probability s (else the nominal model), gets
     an action delay with probability s, and pushes kick up to s x ``push_max_vel``.
     ``schedule=gate`` (default) raises s by ``1 / ramp_steps`` per vectorised step while the
-    share of ended training episodes that were not falls (an EMA over episodes) is at least
-    ``gate``; it never goes down. ``schedule=steps`` is the step-count switch of Extreme
+    share of training episodes ended in about the last ``gate_window`` steps that were not
+    falls is at least ``gate``; it never goes down. ``schedule=steps`` is the step-count switch of Extreme
     Parkour (s jumps to 1 at ``start_after_steps``; delays from ``delay_after_steps``),
     which collapsed a walker's episodes from 20 s to 4 s (docs/oracle.md).
     """
@@ -111,8 +111,8 @@ class RandomizationConfig:
     push_max_vel: float = 0.5  # m/s, xy
     max_action_delay: int = 1  # policy steps of delay
     schedule: Schedule = Schedule.gate
-    gate: float = 0.8  # share of ended episodes not falls (EMA) that lets the ramp advance
-    gate_smoothing: float = 0.02  # EMA weight of each ended episode
+    gate: float = 0.8  # share of recently ended episodes not falls that lets the ramp advance
+    gate_window: int = 1000  # vectorised steps the gate looks back (one 20 s episode)
     ramp_steps: int = 12_000  # vectorised steps from s = 0 to 1 with the gate open (500 x 24)
     # schedule=steps: the schedule counts vectorised steps (one per env.step of the whole
     # batch, legged_gym's common_step_counter). Extreme Parkour: delays after 24 x 8000.

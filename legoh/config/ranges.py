@@ -106,7 +106,7 @@ RANGES: list[tuple[str, Range]] = [
                                                    NON_NEGATIVE_INTERVAL),
     ("env.randomization.base_mass_offset", INTERVAL),
     ("env.randomization.motor_strength", NON_NEGATIVE_INTERVAL),
-    ("env.randomization.gate", FRACTION), ("env.randomization.gate_smoothing", FRACTION),
+    ("env.randomization.gate", FRACTION), ("env.randomization.gate_window", COUNT),
     ("env.randomization.ramp_steps", COUNT),
     ("env.randomization.push_interval_s", POSITIVE),  # 0 would push at every step
     ("env.randomization.*", NON_NEGATIVE),  # offsets, speeds, delays, step counts

@@ -183,11 +183,11 @@ def mirror_curriculum(collector: BaseCollector, env: EnvBase, batch) -> None:
     if isinstance(collector, Collector):
         return
     base = getattr(env, "base_env", env)  # the HikingEnv under a stage-2 TransformedEnv
-    strength, survival = batch["next", keys.RANDOMIZATION][0, -1].tolist()
+    ramp, alive, ended = batch["next", keys.RANDOMIZATION][0, -1].tolist()
     base.load_curriculum_state({
         "level": batch["next", keys.LEVEL][:, -1],
         "global_steps": base.global_steps + int(batch.shape[-1]),
-        "randomization": {"ramp": strength, "survival": survival}})
+        "randomization": {"ramp": ramp, "alive": alive, "ended": ended}})
 
 
 def _worker_factories(make_env_fn, per_worker: int, workers: int, env: EnvBase | None

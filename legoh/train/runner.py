@@ -161,7 +161,9 @@ def batch_scalars(batch, categories: list[str] | None = None) -> dict[str, float
         "progress": float(nxt[keys.PROGRESS].float().mean()),
     }
     if keys.RANDOMIZATION[1] in nxt[keys.INFO].keys():
-        stats["randomization"] = float(nxt[keys.RANDOMIZATION][..., 0].mean())
+        ramp, alive, ended = nxt[keys.RANDOMIZATION].reshape(-1, 3)[-1].tolist()
+        stats["randomization"] = ramp
+        stats["gate_survival"] = alive / ended if ended > 0 else float("nan")
     for name, value in nxt[keys.REWARD_TERMS].items():
         stats[f"reward/{name}"] = float(value.mean())
     if categories is not None and len(categories) > 1:

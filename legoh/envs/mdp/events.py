@@ -35,15 +35,23 @@ class RandomizationSchedule:
     """The randomisation strength s in [0, 1] and the gate that raises it
     (``RandomizationConfig``): state the env owns and checkpoints carry.
 
-    ``survival``: EMA over ended training episodes of "not a fall". ``ramp``: s under the
-    gate schedule, raised by :meth:`step` while ``survival >= cfg.gate``, never lowered.
+    ``survival``: the share of training episodes ended within about the last
+    ``gate_window`` vectorised steps that were not falls (exponentially weighted counts, so
+    the burst of time-outs when a synchronised first episode ends weighs by its share, not
+    by its order). ``ramp``: s under the gate schedule, raised by :meth:`step` while
+    ``survival >= gate``, never lowered.
     """
 
     def __init__(self, cfg, num_draws: int) -> None:
         self.cfg = cfg
         self.active = cfg.enabled and num_draws > 1
         self.ramp = 0.0
-        self.survival = 0.0
+        self.alive = 0.0  # weighted count of recent ended episodes that were not falls
+        self.ended = 0.0  # weighted count of recent ended episodes
+
+    @property
+    def survival(self) -> float:
+        return self.alive / self.ended if self.ended > 0 else 0.0
 
     def strength(self, global_steps: int) -> float:
         """s at vectorised step ``global_steps``."""
@@ -62,26 +70,23 @@ class RandomizationSchedule:
         return self.ramp
 
     def episodes_ended(self, fell: torch.Tensor) -> None:
-        """Fold ended episodes (``fell``: (k,) bool, in any order) into the survival EMA."""
-        k = int(fell.numel())
-        if k == 0:
-            return
-        keep = 1.0 - self.cfg.gate_smoothing
-        weights = self.cfg.gate_smoothing * keep ** torch.arange(k - 1, -1, -1,
-                                                                dtype=torch.float64)
-        alive = (~fell).to("cpu", torch.float64)
-        self.survival = float(keep ** k * self.survival + (weights * alive).sum())
+        """Count ended training episodes (``fell``: (k,) bool)."""
+        self.ended += float(fell.numel())
+        self.alive += float((~fell).sum())
 
     def step(self) -> None:
-        """One vectorised step: the ramp advances while the gate is open."""
+        """One vectorised step: the counts decay; the ramp advances while the gate is open."""
+        keep = 1.0 - 1.0 / self.cfg.gate_window
+        self.alive, self.ended = self.alive * keep, self.ended * keep
         if self.active and self.cfg.schedule == "gate" and self.survival >= self.cfg.gate:
             self.ramp = min(1.0, self.ramp + 1.0 / self.cfg.ramp_steps)
 
     def state(self) -> dict[str, float]:
-        return {"ramp": self.ramp, "survival": self.survival}
+        return {"ramp": self.ramp, "alive": self.alive, "ended": self.ended}
 
     def load_state(self, state: dict) -> None:
-        self.ramp, self.survival = float(state["ramp"]), float(state["survival"])
+        self.ramp = float(state["ramp"])
+        self.alive, self.ended = float(state.get("alive", 0.0)), float(state.get("ended", 0.0))
 
 
 def chance(env, p: float, k: int) -> torch.Tensor:

@@ -193,8 +193,8 @@ def info_terms() -> dict[tuple[str, str], ObsFn]:
         keys.UNSAFE_COLLISIONS: state_of("unsafe_contacts"),
         keys.LEVEL: lambda env, obs: env.level,
         keys.RANDOMIZATION: lambda env, obs: torch.tensor(
-            [env.randomization.strength(env.global_steps), env.randomization.survival],
-            device=env.device).expand(env.num_envs, 2),
+            [env.randomization.strength(env.global_steps), env.randomization.alive,
+             env.randomization.ended], device=env.device).expand(env.num_envs, 3),
         keys.CATEGORY: lambda env, obs: env.category,
         keys.TILE: lambda env, obs: env.goals.tile,
         keys.WAYPOINT_COUNT: lambda env, obs: env.trails_t.count[env.goals.tile],
