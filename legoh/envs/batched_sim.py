@@ -99,7 +99,7 @@ class BatchedSim:
         ``mj_multiRay`` in this backend's threads, ``raymarch`` marches the map in torch."""
         if depth_backend(backend) == DepthBackend.raymarch:
             return HeightmapDepthCamera(self.models[0], fovy_deg, width, height, far,
-                                        self.device)
+                                        self.device, self.threads)
         return RaycastCamera(self.models[0], fovy_deg, width, height, far, self.threads)
 
     def close(self) -> None:

@@ -28,6 +28,7 @@ read the surface behind it (docs/env.md gives how often).
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import mujoco
@@ -36,8 +37,10 @@ import torch
 from scipy.ndimage import maximum_filter, minimum_filter
 
 from legoh.envs.sensors import WORLD_GROUPS, camera_ray_directions
+from legoh.threads import torch_threads
 
 NO_GROUND = -1.0e4  # m: the height of "no ground" (outside the map): rays pass over it
+MIN_CHUNK = 16  # cameras a thread marches at least (fewer: the per-op overhead dominates)
 T, END = 6, 7  # columns of a searching ray (origin 0:3, direction 3:6): t so far, end (m)
 Geom = mujoco.mjtGeom
 
@@ -141,6 +144,7 @@ class HeightmapDepthCamera:
         model: the compiled scene (its static world is read once; memory: 16 bytes a cell).
         fovy_deg, width, height, far: the camera, as the ray caster's.
         device: where rays are marched (the env's device).
+        threads: CPU threads marching cameras in parallel (the physics backend's).
         block: cells a side of the blocks whose tops let a ray skip ahead.
         samples: march steps through a segment of two blocks (step = 2 block / samples
             cells: 1 cell, 0.05 m, by default).
@@ -151,10 +155,13 @@ class HeightmapDepthCamera:
     PAD = 2  # cells of no ground around the map: clamped lookups off the map land there
 
     def __init__(self, model: mujoco.MjModel, fovy_deg: float, width: int, height: int,
-                 far: float, device: torch.device | str = "cpu", block: int = 2,
-                 samples: int = 4, window: int = 4, bisections: int = 2) -> None:
+                 far: float, device: torch.device | str = "cpu", threads: int = 1,
+                 block: int = 2, samples: int = 4, window: int = 4, bisections: int = 2
+                 ) -> None:
         self.width, self.height, self.far = width, height, far
         self.device = dev = torch.device(device)
+        self.threads = threads if dev.type == "cpu" else 1
+        self._pool = ThreadPoolExecutor(self.threads) if self.threads > 1 else None
         self.samples, self.bisections, self.block, self.window = samples, bisections, block, window
         world = static_world(model)
         self.res = world.res
@@ -173,8 +180,10 @@ class HeightmapDepthCamera:
                    constant_values=NO_GROUND)
         self._origin = torch.as_tensor(world.origin - self.PAD * world.res, device=dev)
         self._nx, self._ny = h.shape  # vertices
-        corners = np.stack([h[:-1, :-1], h[1:, :-1], h[:-1, 1:], h[1:, 1:]], -1)
-        self._corners = torch.as_tensor(corners.reshape(-1, 4), dtype=f32, device=dev)
+        # per cell: h(fu, fv) = h00 + a fu + b fv + c min(fu, fv) is MuJoCo's pair of triangles
+        h00, h10, h01, h11 = h[:-1, :-1], h[1:, :-1], h[:-1, 1:], h[1:, 1:]
+        planes = np.stack([h00, h10 - h00, h01 - h00, h11 - h10 - h01 + h00], -1)
+        self._cells = torch.as_tensor(planes.reshape(-1, 4), dtype=f32, device=dev)
         top, bottom = self._block_bounds(h, block)
         self._nbx, self._nby = top.shape
         self._tops = torch.as_tensor(top.reshape(-1), dtype=f32, device=dev)
@@ -206,12 +215,30 @@ class HeightmapDepthCamera:
 
     # ----------------------------------------------------------------- rendering
     def render(self, cam_pos: torch.Tensor, cam_mat: torch.Tensor) -> torch.Tensor:
-        """Depth (k, height, width) for camera positions (k, 3) and rotations (k, 3, 3)."""
-        k = len(cam_pos)
-        if k == 0:
-            return torch.zeros(0, self.height, self.width, device=self.device)
+        """Depth (k, height, width) for camera positions (k, 3) and rotations (k, 3, 3).
+
+        On the CPU the cameras are split over ``threads`` Python threads, each running torch
+        on one thread (torch releases the GIL inside an op): two torch threads per op spin at
+        every op's end when the cores are shared, and were measured up to 70x slower."""
         pos = torch.as_tensor(cam_pos, device=self.device)
         mat = torch.as_tensor(cam_mat, device=self.device).to(torch.float32)
+        k = len(pos)
+        if self._pool is None or k < 2 * MIN_CHUNK:
+            if self.device.type != "cpu":
+                return self._render(pos, mat)
+            with torch_threads(1):
+                return self._render(pos, mat)
+        parts = min(self.threads, k // MIN_CHUNK)
+        cuts = [k * i // parts for i in range(parts + 1)]
+        with torch_threads(1):
+            return torch.cat(list(self._pool.map(
+                lambda a, b: self._render(pos[a:b], mat[a:b]), cuts[:-1], cuts[1:])))
+
+    def _render(self, pos: torch.Tensor, mat: torch.Tensor) -> torch.Tensor:
+        """Depth (k, height, width) of the cameras at ``pos`` (k, 3), ``mat`` (k, 3, 3)."""
+        k = len(pos)
+        if k == 0:
+            return torch.zeros(0, self.height, self.width, device=self.device)
         vec = torch.einsum("rj,kij->kri", self._dirs, mat).contiguous()  # (k, R, 3) world
         # the map frame: xy in cells from vertex [0, 0] (float32 keeps 0.1 mm over 1 km)
         grid = torch.cat([(pos[:, :2].double() - self._origin) / self.res, pos[:, 2:]], 1)
@@ -222,18 +249,16 @@ class HeightmapDepthCamera:
         return depth.view(k, self.height, self.width)
 
     def _ground(self, u: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
-        """Surface height (m) at map points (u, v) in cells: the triangle of MuJoCo's height
-        field under each point; NO_GROUND off the map."""
+        """Surface height (m) at map points (u, v) in cells: MuJoCo's height-field triangles
+        (fu >= fv: vertices 00, 10, 11; else 00, 01, 11); NO_GROUND off the map."""
         u = torch.clamp(u, 0.0, self._nx - 1.001)
         v = torch.clamp(v, 0.0, self._ny - 1.001)
         fi, fj = torch.floor(u), torch.floor(v)
         fu, fv = u - fi, v - fj
         cell = fi.int() * (self._ny - 1) + fj.int()
-        h00, h10, h01, h11 = self._corners.index_select(0, cell.view(-1)).view(
-            *u.shape, 4).unbind(-1)
-        lo, hi = torch.minimum(fu, fv), torch.maximum(fu, fv)
-        # barycentric: fu >= fv on triangle (00, 10, 11), else on (00, 01, 11)
-        return h00 + (h11 - h00) * lo + (torch.where(fu >= fv, h10, h01) - h00) * (hi - lo)
+        h00, a, b, c = self._cells.index_select(0, cell.view(-1)).view(*u.shape, 4).unbind(-1)
+        return torch.addcmul(torch.addcmul(torch.addcmul(h00, a, fu), b, fv), c,
+                             torch.minimum(fu, fv))
 
     def _gap(self, rays: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
         """Height (m) of the points at ``t`` (A, ...) along ``rays`` (A, 6+) above the
@@ -265,9 +290,10 @@ class HeightmapDepthCamera:
         end = torch.minimum(end, self._tmax)
         ids = (sink <= end).view(-1).nonzero().squeeze(1)  # rays that may meet the surface
         # per ray: origin, direction (xy in cells a metre), t searched up to, end (m)
-        rays = torch.cat([o[:, None].expand(k, nray, 3), vec / self._to_cells,
-                          sink[..., None], end[..., None]], -1).view(-1, 8)
-        rays = rays.index_select(0, ids)
+        rays = torch.cat([o.index_select(0, ids // nray),
+                          vec.view(-1, 3).index_select(0, ids) / self._to_cells,
+                          sink.view(-1, 1).index_select(0, ids),
+                          end.view(-1, 1).index_select(0, ids)], 1)
         seg = 2.0 * b * res  # m: a segment's midpoint is within a block of all of it
         fine_t = torch.arange(1, self.samples + 1, device=self.device) * (seg / self.samples)
         coarse, fine = rays, rays[:0]
@@ -278,9 +304,8 @@ class HeightmapDepthCamera:
                 dip, first = self._dips(coarse, seg)
                 coarse[:, T] += torch.where(dip, first * seg, self.window * seg)
                 alive = coarse[:, T] <= coarse[:, END]
-                go = (dip & alive).nonzero().squeeze(1)
-                fine = torch.cat([fine, coarse.index_select(0, go)])
-                fine_ids = torch.cat([fine_ids, coarse_ids.index_select(0, go)])
+                go = (dip & alive).nonzero().squeeze(1)  # (fine is empty here)
+                fine, fine_ids = coarse.index_select(0, go), coarse_ids.index_select(0, go)
                 stay = (~dip & alive).nonzero().squeeze(1)
                 coarse, coarse_ids = coarse.index_select(0, stay), coarse_ids.index_select(0, stay)
             if len(fine):  # march the dipping segments; t itself is above the surface
@@ -327,8 +352,8 @@ class HeightmapDepthCamera:
     def _refine(self, rays: torch.Tensor, ta: torch.Tensor, tb: torch.Tensor,
                 fa: torch.Tensor, fb: torch.Tensor) -> torch.Tensor:
         """The meeting point in each bracket [ta (above), tb (under)] of ``rays``: bisection,
-        then a secant step, exact when the bracket ends on one triangle. ``fa`` NaN: the
-        gap at ta is not known yet."""
+        then a secant step, exact when the bracket ends lie on one triangle. ``fa`` NaN: the
+        gap at ta is not known yet (evaluated if still needed)."""
         for _ in range(self.bisections):
             tm = (ta + tb) / 2
             fm = self._gap(rays, tm)
