@@ -423,21 +423,33 @@ class HeightmapDepthCamera:
         env, ids = self._in_view(cyl[:, :3], torch.hypot(radius, half), pos, normals, support)
         if len(env) == 0:
             return
-        p = (pos[env] - cyl[ids, :3])[:, None]  # (P, 1, 3) camera from the centre
-        r2, hz = (radius[ids] ** 2)[:, None], half[ids][:, None]
+        p = pos[env] - cyl[ids, :3]  # (P, 3) camera from the centre
+        r2, hz = (radius[ids] ** 2)[:, None], half[ids]  # (P, 1), (P,)
         d = vec[env]  # (P, R, 3)
-        px, py, pz = p.unbind(-1)
-        dx, dy, dz = d.unbind(-1)
-        a = dx * dx + dy * dy
-        b = dx * px + dy * py
-        det = b * b - a * (px * px + py * py - r2)
+        px, py, pz = (p[:, i:i + 1] for i in range(3))
+        c = px * px + py * py - r2  # > 0: the camera is outside the round side
+        a = torch.addcmul(d[..., 0] ** 2, d[..., 1], d[..., 1])
+        b = torch.addcmul(d[..., 0] * px, d[..., 1], py)
+        det = torch.addcmul(b * b, a, c, value=-1.0)
         root = torch.sqrt(torch.clamp(det, min=0.0))
-        t_in = (-b - root) / a
-        t_side = torch.where(t_in >= 0, t_in, (-b + root) / a)
-        side = (det > 0) & (t_side >= 0) & ((pz + t_side * dz).abs() <= hz)
-        t = torch.where(side, t_side, torch.inf)
-        for sign in (1.0, -1.0):  # the flat ends
-            t_cap = (sign * hz - pz) / dz
-            qx, qy = px + t_cap * dx, py + t_cap * dy
-            t = torch.where((t_cap >= 0) & (qx * qx + qy * qy <= r2) & (t_cap < t), t_cap, t)
+        # the entry from outside, the exit from inside
+        t = (torch.where(c > 0, -root, root) - b) / a
+        z = torch.addcmul(pz, t, d[..., 2])
+        t = torch.where((det > 0) & (t >= 0) & (z.abs() <= hz[:, None]), t, torch.inf)
+        # a flat end comes first only from beyond its plane or from inside
+        ends = ((pz[:, 0].abs() > hz) | (c[:, 0] <= 0)).nonzero().squeeze(1)
+        if len(ends):
+            de, pe, r2e = d[ends], p[ends], r2[ends]
+            plane = torch.where(pe[:, 2:3] > 0, hz[ends, None], -hz[ends, None])
+            t_end = (plane - pe[:, 2:3]) / de[..., 2]
+            qx = torch.addcmul(pe[:, 0:1], t_end, de[..., 0])
+            qy = torch.addcmul(pe[:, 1:2], t_end, de[..., 1])
+            t_end = torch.where((t_end >= 0) & (qx * qx + qy * qy <= r2e), t_end, torch.inf)
+            if (c[ends, 0] <= 0).any():  # inside: the other end too
+                t_far = (-plane - pe[:, 2:3]) / de[..., 2]
+                qx = torch.addcmul(pe[:, 0:1], t_far, de[..., 0])
+                qy = torch.addcmul(pe[:, 1:2], t_far, de[..., 1])
+                t_end = torch.minimum(t_end, torch.where(
+                    (t_far >= 0) & (qx * qx + qy * qy <= r2e), t_far, torch.inf))
+            t[ends] = torch.minimum(t[ends], t_end)
         dist.scatter_reduce_(0, env[:, None].expand_as(t), t, "amin")
