@@ -40,7 +40,7 @@ from legoh.envs.sensors import WORLD_GROUPS, camera_ray_directions
 from legoh.threads import torch_threads
 
 NO_GROUND = -1.0e4  # m: the height of "no ground" (outside the map): rays pass over it
-MIN_CHUNK = 16  # cameras a thread marches at least (fewer: the per-op overhead dominates)
+MIN_CHUNK = 64  # cameras a thread marches at least (fewer: Python and the GIL dominate)
 T, END = 6, 7  # columns of a searching ray (origin 0:3, direction 3:6): t so far, end (m)
 Geom = mujoco.mjtGeom
 
