@@ -11,12 +11,15 @@ map with the most obstacles) and N in {64, 256}:
   * parity on the same cameras: median |raymarch - multiray| and the share within 5 cm, over
     the pixels where either sees a surface;
   * with ``--env`` (RandomMix rows): HikingEnv steps/s with depth on, per backend, against
-    the ceiling (experiments/bench_env.py's measurement).
+    the ceiling (experiments/bench_env.py's measurement);
+  * with ``--tradeoff``: the march's settings (step, bisections, block) against speed and
+    accuracy, on a map of every category (2 levels, 1 variant; the parity test's map).
 
 Cameras: robots in the default pose standing along the expert paths of every tile (all
 levels), facing along them, N of them spread over the map.
 
-    python experiments/bench_depth.py [--quick] [--env] [--robots h1 g1] [--results DIR]
+    python experiments/bench_depth.py [--quick] [--env] [--tradeoff] [--robots h1 g1]
+                                      [--results DIR]
 
 Writes experiments/results/bench_depth.{json,md}. Absolute numbers depend on the machine and
 on what else runs on it; the ratios measured in the same run are the figures to read.
@@ -147,6 +150,57 @@ def row(robot: str, trail: str, n: int, args: argparse.Namespace) -> dict:
     return out
 
 
+# (label, HeightmapDepthCamera settings): the default first
+SETTINGS = [
+    ("default: step 1 cell, 2 bisections, 2-cell blocks", {}),
+    ("step 2 cells", {"samples": 2}),
+    ("step 1/2 cell", {"samples": 8}),
+    ("1 bisection", {"bisections": 1}),
+    ("0 bisections (secant only)", {"bisections": 0}),
+    ("4-cell blocks (step 1 cell)", {"block": 4, "samples": 8}),
+    ("4-cell blocks, step 2 cells", {"block": 4, "samples": 4}),
+]
+
+
+def tradeoff(robot: str, args: argparse.Namespace) -> list[dict]:
+    """Each setting of the march on one map of every category, against multiray."""
+    from legoh.envs.heightmap_depth import HeightmapDepthCamera
+    from legoh.envs.terrain import ALL_CATEGORIES
+
+    register_configs()
+    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
+        cfg = compose("config", overrides=[
+            f"robot={robot}", "trail=flat", "trail.levels=2", "trail.variants=1",
+            f"trail.categories=[{','.join(ALL_CATEGORIES)}]", "env.curriculum.enabled=false"])
+    env_cfg = OmegaConf.to_object(cfg.env)
+    env_cfg.num_envs = 1
+    env = HikingEnv(OmegaConf.to_object(cfg.robot), OmegaConf.to_object(cfg.trail), env_cfg,
+                    OmegaConf.to_object(cfg.sim), seed=0)
+    n = 14 * 12  # 12 cameras a tile
+    pos, mat = standing_cameras(env, n)
+    d, fovy = cfg.env.depth, cfg.robot.camera.fovy_deg
+    ref = np.asarray(env.sim.make_depth_camera(fovy, d.width, d.height, d.far,
+                                               "multiray").render(pos, mat))
+    cams = {label: HeightmapDepthCamera(env.scene.model, fovy, d.width, d.height, d.far,
+                                        **kw) for label, kw in SETTINGS}
+    frames = {label: [] for label in cams}
+    for _ in range(args.rounds):
+        for label, cam in cams.items():
+            frames[label].append(frame_cost(cam, pos, mat, args.reps))
+    rows = []
+    for label, cam in cams.items():
+        got = np.asarray(cam.render(pos, mat), dtype=np.float64)
+        seen = (ref < d.far) | (got < d.far)
+        err = np.abs(got - ref)[seen]
+        rows.append({"robot": robot, "setting": label, "s_per_frame": float(np.median(
+            frames[label])), "median_err_m": float(np.median(err)),
+            "within_1cm": float(np.mean(err <= 0.01)), "within_5cm": float(np.mean(err <= WITHIN))})
+        print(f"{robot} {label:50s} {rows[-1]['s_per_frame'] * 1e6:5.0f} us/frame  "
+              f"{rows[-1]['within_1cm']:.2%} within 1 cm, {rows[-1]['within_5cm']:.2%} within 5 cm")
+    env.close()
+    return rows
+
+
 def load() -> dict:
     """How busy the machine was: the 1-minute load average."""
     return {"loadavg_1min": os.getloadavg()[0]}
@@ -156,6 +210,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="N=64, H1, RandomMix only")
     parser.add_argument("--env", action="store_true", help="also HikingEnv rates with depth")
+    parser.add_argument("--tradeoff", action="store_true",
+                        help="also the march's settings: speed against accuracy")
     parser.add_argument("--robots", nargs="+", default=["h1", "g1"])
     parser.add_argument("--trails", nargs="+", default=["randommix", "forest"])
     parser.add_argument("--sizes", type=int, nargs="+", default=[64, 256])
@@ -171,9 +227,11 @@ def main() -> None:
     torch.set_num_threads(args.torch_threads)
     before = load()
     rows = [row(r, t, n, args) for r in args.robots for t in args.trails for n in args.sizes]
+    settings = [x for r in args.robots for x in tradeoff(r, args)] if args.tradeoff else []
     result = {"machine": {"cpus": os.cpu_count(), "platform": platform.platform(),
                           "mujoco": mujoco.__version__, "torch": torch.__version__},
-              "load_before": before, "load_after": load(), "rows": rows}
+              "load_before": before, "load_after": load(), "rows": rows,
+              "tradeoff": settings}
     write_results(result, args)
 
 
@@ -222,6 +280,16 @@ def write_results(result: dict, args: argparse.Namespace) -> None:
                 f"{r['ceiling_steps_per_s']:.0f} | {r['env_raymarch_steps_per_s']:.0f} | "
                 f"{r['env_raymarch_over_ceiling']:.0%} | {r['env_multiray_steps_per_s']:.0f} "
                 f"| {r['env_multiray_over_ceiling']:.0%} |")
+    if result["tradeoff"]:
+        lines += ["", "The march's settings on a map of every category (2 levels, 1 variant; "
+                  "12 standing cameras a tile), one thread; errors against multiray over the "
+                  "pixels where either sees a surface:", "",
+                  "| robot | setting | us/frame | median err mm | within 1 cm | within 5 cm |",
+                  "|---|---|---|---|---|---|"]
+        for r in result["tradeoff"]:
+            lines.append(f"| {r['robot']} | {r['setting']} | {r['s_per_frame'] * 1e6:.0f} | "
+                         f"{r['median_err_m'] * 1e3:.4f} | {r['within_1cm']:.2%} | "
+                         f"{r['within_5cm']:.2%} |")
     (args.results / f"{stem}.md").write_text("\n".join(lines) + "\n")
     print(f"wrote {args.results / stem}.json and .md")
 
