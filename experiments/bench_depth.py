@@ -221,6 +221,7 @@ def main() -> None:
     parser.add_argument("--torch-threads", type=int, default=1,
                         help="torch threads (training's algo.torch_threads: 1)")
     parser.add_argument("--results", type=Path, default=RESULTS)
+    parser.add_argument("--note", default="", help="what else ran on the machine")
     args = parser.parse_args()
     if args.quick:
         args.robots, args.trails, args.sizes = ["h1"], ["randommix"], [64]
@@ -230,7 +231,7 @@ def main() -> None:
     settings = [x for r in args.robots for x in tradeoff(r, args)] if args.tradeoff else []
     result = {"machine": {"cpus": os.cpu_count(), "platform": platform.platform(),
                           "mujoco": mujoco.__version__, "torch": torch.__version__},
-              "load_before": before, "load_after": load(), "rows": rows,
+              "load_before": before, "load_after": load(), "note": args.note, "rows": rows,
               "tradeoff": settings}
     write_results(result, args)
 
@@ -253,7 +254,7 @@ def write_results(result: dict, args: argparse.Namespace) -> None:
         "either sees a surface. 1-minute load average before / after: "
         f"{result['load_before']['loadavg_1min']:.2f} / "
         f"{result['load_after']['loadavg_1min']:.2f} (other work on the same cores shows "
-        "there: compare within a row).", "",
+        f"there: compare within a row). {result['note']}", "",
         "| robot | trail | N | physics us/step | raymarch us/frame | raymarch, 1 thread | "
         "multiray us/frame | raymarch@10Hz / physics | 1 thread | multiray@10Hz / physics | "
         "multiray / raymarch | median err mm | within 5 cm |",
