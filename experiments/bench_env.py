@@ -5,7 +5,8 @@ For H1 and G1 on RandomMix level 2 and N in {16, 64, 256}:
     holding the default pose (no observations, rewards or resets);
   * HikingEnv without depth and with depth (10 Hz: a frame every 5 policy steps), random
     actions through the public ``env.step`` / ``step_and_maybe_reset`` path;
-  * depth cost: ray casting (default) vs MuJoCo's EGL renderer, per frame;
+  * depth cost: the env's camera (``env.depth.backend``; the ``raycast`` keys are its cost,
+    experiments/bench_depth.py compares the backends) vs MuJoCo's EGL renderer, per frame;
   * peers: gymnasium's Humanoid-v5 and torchrl's ``HumanoidEnv`` (MuJoCo C backend), one env.
 
 With ``--backend warp`` (or ``both``: the CPU rows above, then these, in one run), MuJoCo
@@ -314,7 +315,8 @@ def cpu_benchmark(args: argparse.Namespace) -> None:
     print(peers)
     result = {"machine": {"cpus": os.cpu_count(), "platform": platform.platform(),
                           "mujoco": mujoco.__version__, "torch": torch.__version__},
-              "level": LEVEL, "trail": "randommix", "rows": rows, "peers": peers}
+              "level": LEVEL, "trail": "randommix", "rows": rows, "peers": peers,
+              "depth_backend": compose_cfg("h1", True).env.depth.backend.value}
     write_results(result, quick=args.quick, results=args.results)
 
 
@@ -326,7 +328,8 @@ def write_results(result: dict, quick: bool, results: Path = RESULTS) -> None:
         "# HikingEnv speed (policy steps/s, 50 Hz policy, 4 substeps)", "",
         f"RandomMix level {result['level']}, {result['machine']['cpus']} CPUs, "
         f"MuJoCo {result['machine']['mujoco']}. Ceiling: `mujoco.rollout` of the same model, "
-        "N, substeps and threads. Depth: 32 x 24 ray-cast frame every 5 policy steps "
+        "N, substeps and threads. Depth: 32 x 24 frame of the env's camera "
+        f"(env.depth.backend={result.get('depth_backend', 'multiray')}) every 5 policy steps "
         "(the default).", "",
         "| robot | N | ceiling | env | env / ceiling | env + depth | (env+depth) / ceiling "
         "| depth@10Hz / physics | EGL / ray cast (per frame) |",

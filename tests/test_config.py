@@ -91,6 +91,12 @@ def test_bad_enum_value_is_named() -> None:
     assert "upper_body" in message(err) and "hold" in message(err)
 
 
+def test_bad_depth_backend_is_named() -> None:
+    with pytest.raises(ConfigCompositionException) as err:
+        compose_config("env.depth.backend=lidar")
+    assert all(w in message(err) for w in ("env.depth.backend", "lidar", "raymarch", "multiray"))
+
+
 def test_mistyped_key_in_a_yaml_file_fails(tmp_path: Path) -> None:
     """A typo inside an option file (not only on the command line) fails at composition."""
     from hydra import compose, initialize_config_dir

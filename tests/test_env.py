@@ -349,6 +349,26 @@ def test_depth_sees_box_ahead(make: EnvFactory) -> None:
         assert centre[i] == pytest.approx(expected, abs=0.03)
 
 
+def test_depth_backend_is_picked_by_key(make: EnvFactory,
+                                        flat: tuple[DictConfig, Scene]) -> None:
+    """env.depth.backend picks the camera; both see the same flat trail from the same poses.
+    A bad value set from Python (no composition check) fails naming key, value, choices."""
+    from legoh.envs.batched_sim import RaycastCamera
+    from legoh.envs.heightmap_depth import HeightmapDepthCamera
+
+    frames = {}
+    for backend, kind in [("raymarch", HeightmapDepthCamera), ("multiray", RaycastCamera)]:
+        cfg = config("h1", "flat", "env.depth.enabled=true", f"env.depth.backend={backend}")
+        env = make(2, cfg=cfg, scene=flat[1])
+        assert isinstance(env.depth_cam, kind)
+        frames[backend] = env.reset()["obs", "depth"]
+    torch.testing.assert_close(frames["raymarch"], frames["multiray"], atol=1e-4, rtol=0)
+    env_cfg = OmegaConf.to_object(config("h1", "flat", "env.depth.enabled=true").env)
+    env_cfg.depth.backend = "lidar"
+    with pytest.raises(ValueError, match=r"env\.depth\.backend='lidar'.*'raymarch', 'multiray'"):
+        make(2, cfg=config("h1", "flat"), scene=flat[1], depth=env_cfg.depth)
+
+
 # --------------------------------------------------------------------------- curriculum
 def levels_after(levels: list[int], covered: list[float], reached: list[bool],
                  num_levels: int = 5, seed: int = 0) -> np.ndarray:

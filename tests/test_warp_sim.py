@@ -235,6 +235,23 @@ def test_depth_matches_ray_caster(sim: WarpSim, scene: Scene) -> None:
     np.testing.assert_allclose(got.cpu().numpy(), want, rtol=0, atol=DEPTH_TOL)
 
 
+def test_raymarch_camera_on_the_backend_device(sim: WarpSim, scene: Scene) -> None:
+    """env.depth.backend=raymarch on this backend: torch on the sim's device, the CPU ray
+    caster's depths (tests/test_depth_raymarch.py holds the thresholds' measurements)."""
+    qpos, _ = spawn(scene)
+    poses, mats = camera_poses(scene.model, qpos)
+    args = (87.0, 32, 24, 5.0)
+    data = mujoco.MjData(scene.model)
+    mujoco.mj_forward(scene.model, data)
+    want = DepthRaycaster(scene.model, *args, threads=1).render(data, poses, mats)
+    cam = sim.make_depth_camera(*args, backend="raymarch")
+    got = cam.render(torch.as_tensor(poses, device=sim.device),
+                     torch.as_tensor(mats, device=sim.device))
+    assert got.device == sim.device and got.shape == (N, 24, 32)
+    err = np.abs(got.cpu().numpy() - want)
+    assert np.median(err) < 1e-4 and np.mean(err < 0.05) > 0.98
+
+
 # --------------------------------------------------------------------------- resets
 def test_masked_reset_leaves_other_worlds_alone(sim: WarpSim, scene: Scene) -> None:
     qpos, ctrl = reset_all(sim, scene)

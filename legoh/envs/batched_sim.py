@@ -16,6 +16,8 @@ import numpy as np
 import torch
 from mujoco import rollout
 
+from legoh.config.env import DepthBackend, depth_backend
+from legoh.envs.heightmap_depth import HeightmapDepthCamera
 from legoh.envs.sensors import DepthRaycaster
 
 STATE_SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -90,9 +92,14 @@ class BatchedSim:
             mujoco.mj_getState(model, d, self.state[env], STATE_SPEC)
             self._sensordata[env, :] = d.sensordata
 
-    def make_depth_camera(self, fovy_deg: float, width: int, height: int, far: float
-                          ) -> RaycastCamera:
-        """A ray-casting depth camera against the nominal world (static geoms)."""
+    def make_depth_camera(self, fovy_deg: float, width: int, height: int, far: float,
+                          backend: DepthBackend | str = DepthBackend.multiray
+                          ) -> RaycastCamera | HeightmapDepthCamera:
+        """A depth camera against the nominal world (static geoms): ``multiray`` casts with
+        ``mj_multiRay`` in this backend's threads, ``raymarch`` marches the map in torch."""
+        if depth_backend(backend) == DepthBackend.raymarch:
+            return HeightmapDepthCamera(self.models[0], fovy_deg, width, height, far,
+                                        self.device, self.threads)
         return RaycastCamera(self.models[0], fovy_deg, width, height, far, self.threads)
 
     def close(self) -> None:

@@ -67,7 +67,8 @@ class HikingEnv(EnvBase):
         self.reward_terms, self.only_positive, self.termination_penalty = (
             rewards.reward_table(env, robot, self.robot.nominal_base_height, self.reach_radius))
         self.depth_cam = (self.sim.make_depth_camera(robot.camera.fovy_deg, env.depth.width,
-                                                     env.depth.height, env.depth.far)
+                                                     env.depth.height, env.depth.far,
+                                                     env.depth.backend)
                           if env.depth.enabled else None)
         self._constants(robot)
         self._terms()

@@ -11,8 +11,10 @@ device, stepped together.
 * ``set_models(ids, draw_ids)`` (from the next step), ``step(ctrl (N, nu))``,
   ``reset_envs(ids, qpos (k, nq), qvel (k, nv), ctrl (k, nu))`` (sets the state and fills
   those envs' sensordata by a forward pass), ``make_depth_camera(fovy_deg, width, height,
-  far)`` -> an object whose ``render(cam_pos (k, 3), cam_mat (k, 3, 3))`` gives (k, H, W)
-  planar depth in metres, and ``close()``.
+  far, backend)`` -> an object whose ``render(cam_pos (k, 3), cam_mat (k, 3, 3))`` gives
+  (k, H, W) planar depth in metres (``backend``: a ``DepthBackend``, ``multiray`` by
+  default: the backend's own ray cast; ``raymarch``: ``legoh.envs.heightmap_depth``), and
+  ``close()``.
 
 Backends: ``mujoco`` (``BatchedSim``: CPU, ``mujoco.rollout``), ``warp`` (``WarpSim``:
 MuJoCo Warp on a GPU, the ``gpu`` extra).

@@ -30,6 +30,8 @@ import numpy as np
 import torch
 import warp as wp
 
+from legoh.config.env import DepthBackend, depth_backend
+from legoh.envs.heightmap_depth import HeightmapDepthCamera
 from legoh.envs.randomization import PhysicsDraw, build_model_pool
 from legoh.envs.sensors import WORLD_GROUPS, camera_ray_directions
 
@@ -249,8 +251,12 @@ class WarpSim:
     # -- sensors ---------------------------------------------------------------------------
 
     def make_depth_camera(self, fovy_deg: float, width: int, height: int, far: float,
-                          bvh: bool = True) -> WarpDepthCamera:
-        """A depth camera casting its rays on this backend's device."""
+                          backend: DepthBackend | str = DepthBackend.multiray, bvh: bool = True
+                          ) -> WarpDepthCamera | HeightmapDepthCamera:
+        """A depth camera on this backend's device: ``multiray`` casts with ``mjw.rays``,
+        ``raymarch`` marches the map in torch."""
+        if depth_backend(backend) == DepthBackend.raymarch:
+            return HeightmapDepthCamera(self.mjm, fovy_deg, width, height, far, self.device)
         return WarpDepthCamera(self.mjm, self.wp_device, fovy_deg, width, height, far, bvh)
 
     def close(self) -> None:
