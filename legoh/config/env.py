@@ -117,8 +117,8 @@ class RandomizationConfig:
     ``schedule=gate`` (default) raises s by ``1 / ramp_steps`` per vectorised step while the
     share of training episodes ended in about the last ``gate_window`` steps that were not
     falls is at least ``gate``; it never goes down. ``schedule=steps`` is the step-count
-    switch of Extreme Parkour (s jumps to 1 at ``start_after_steps``; delays from ``delay_after_steps``),
-    which collapsed a walker's episodes from 20 s to 4 s (docs/oracle.md).
+    switch of Extreme Parkour (s jumps to 1 at ``start_after_steps``; delays from
+    ``delay_after_steps``), which collapsed a walker's episodes from 20 s to 4 s (docs/oracle.md).
     """
 
     enabled: bool = True
