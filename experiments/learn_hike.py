@@ -41,6 +41,7 @@ import numpy as np  # noqa: E402
 import torch  # noqa: E402
 from learn_walk import compose_run, eval_env, read_evals, walk_test  # noqa: E402
 
+from legoh.eval.benchmark import rollout_level  # noqa: E402
 from legoh.train.oracle import train_oracle  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -107,6 +108,79 @@ def train(args) -> None:
     train_oracle(cfg, out, resume=str(resume) if resume.exists() else None,
                  on_iteration=on_iteration, resume_hint=hint)
     write_summary(out, args)
+
+
+# ----------------------------------------------------------------------------- benchmark
+def bench_config(args):
+    """The benchmark of (d) and (e): the hike map's five categories, levels 0-4, robots
+    placed 2-10 m of path from the terminus (the protocol's default), randomisation on,
+    30 s, ``--bench-robots`` robots per level (round-robin over the categories)."""
+    init = [] if args.robot not in WALKER else LEAN[2:3]  # the critic size the actor needs
+    return compose_run(args.robot, args.seed, "walk", "hike", [
+        *init, f"eval.robots={args.bench_robots}", "eval.runs=1", "eval.variants=2",
+        "eval.levels=[0,1,2,3,4]", "eval.randomization=true", f"eval.seed={1000 + args.seed}",
+        *args.overrides])
+
+
+def bench_snapshot(env, actor) -> dict:
+    """SR (%) per category over levels 0-4, per (category, level), and milestone columns."""
+    outs = {}
+    for level in range(5):
+        rec = rollout_level(env, actor, level)
+        for c in CATEGORIES:
+            mine = rec.category == c
+            outs[(c, level)] = (rec.outcomes.success[mine], rec.outcomes.fall[mine],
+                                rec.outcomes.distance[mine])
+    row = {}
+    for c in CATEGORIES:
+        succ = np.concatenate([outs[(c, lv)][0] for lv in range(5)])
+        fell = np.concatenate([outs[(c, lv)][1] for lv in range(5)])
+        row[f"sr_{c}"] = 100.0 * succ.mean()
+        row[f"fr_{c}"] = 100.0 * fell.mean()
+        row[f"dw_{c}"] = float(np.nanmean(np.concatenate([outs[(c, lv)][2] for lv in range(5)])))
+        for lv in range(5):
+            row[f"sr_{c}_l{lv}"] = 100.0 * outs[(c, lv)][0].mean()
+    row["d_sr"] = float(np.mean([row[f"sr_randommix_l{lv}"] for lv in range(3)]))
+    row["e_sr_mix"] = row["sr_randommix"]
+    return row
+
+
+def evaluate_snapshots(args) -> None:
+    """Score every snapshot not yet in bench.csv (at least ``--bench-every`` training
+    minutes after the last scored one, and always the newest)."""
+    from legoh.eval.benchmark import make_eval_env
+    from legoh.threads import torch_threads
+    from legoh.train.oracle import build_oracle
+
+    out = run_dir(args)
+    rows = read_rows(out / "bench.csv")
+    done = {int(r["iteration"]) for r in rows}
+    snaps = sorted((out / "snapshots").glob("it*.pt"))
+    cfg = bench_config(args)
+    env = make_eval_env(cfg)
+    _, actor, _, _ = build_oracle(env, cfg)
+    last = max((r["minutes"] for r in rows), default=-1e9)
+    for i, path in enumerate(snaps):
+        snap = torch.load(path, map_location="cpu", weights_only=True)
+        newest = i == len(snaps) - 1
+        if snap["iteration"] in done or (snap["minutes"] - last < args.bench_every
+                                         and not newest):
+            continue
+        actor.load_state_dict(snap["actor"])
+        t0 = time.perf_counter()
+        with torch_threads(1):
+            row = {"iteration": snap["iteration"], "frames": snap["frames"],
+                   "minutes": round(snap["minutes"], 2), **bench_snapshot(env, actor.eval())}
+        rows.append(row)
+        rows.sort(key=lambda r: r["iteration"])
+        last = snap["minutes"]
+        write_rows(out / "bench.csv", rows)
+        write_summary(out, args)
+        print(f"[learn_hike] bench it {row['iteration']} ({row['minutes']:.0f} min): (d) SR "
+              f"{row['d_sr']:.0f} %, " + ", ".join(f"{c} {row[f'sr_{c}']:.0f}"
+                                                   for c in CATEGORIES)
+              + f" ({time.perf_counter() - t0:.0f} s)", flush=True)
+    env.close()
 
 
 # ----------------------------------------------------------------------------- records
@@ -213,10 +287,17 @@ def main() -> None:
                         help="walker (the committed learn_walk walker) | none | PATH")
     parser.add_argument("--tag", default="", help="suffix of the run folder (a variant)")
     parser.add_argument("--plot", action="store_true", help="redraw curve and summary")
+    parser.add_argument("--evaluate", action="store_true",
+                        help="benchmark the snapshots not yet scored (d, e)")
+    parser.add_argument("--bench-robots", type=int, default=80, help="robots per level")
+    parser.add_argument("--bench-every", type=float, default=10.0,
+                        help="training minutes between benchmarked snapshots")
     parser.add_argument("overrides", nargs="*", help="Hydra overrides")
     args = parser.parse_args()
     if args.plot:
         return write_summary(run_dir(args), args)
+    if args.evaluate:
+        return evaluate_snapshots(args)
     train(args)
 
 
