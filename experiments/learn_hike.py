@@ -79,14 +79,20 @@ def train(args) -> None:
     it_ckpt = (int(torch.load(resume, map_location="cpu", weights_only=False)["iteration"])
                if resume.exists() else 0)
     rows = [r for r in rows if r["iteration"] <= it_ckpt]  # a killed run: its records to then
-    clock = {"train_s": 60.0 * rows[-1]["minutes"] if rows else 0.0,
-             "tick": time.perf_counter()}
+    # the training clock of every iteration (clock.csv), so a resumed run continues from its
+    # checkpoint's minute, not from the last evaluation's
+    clocks = [r for r in read_rows(out / "clock.csv") if r["iteration"] <= it_ckpt]
+    write_rows(out / "clock.csv", clocks or [{"iteration": 0, "minutes": 0.0}])
+    start_min = clocks[-1]["minutes"] if clocks else (rows[-1]["minutes"] if rows else 0.0)
+    clock = {"train_s": 60.0 * start_min, "tick": time.perf_counter()}
     clock["next_eval"] = clock["train_s"] + (60.0 * args.eval_every if rows else 0.0)
     session_end = clock["train_s"] + 60.0 * args.minutes
 
     def on_iteration(it: int, stats: dict, actor) -> bool:
         now = time.perf_counter()
         clock["train_s"] += now - clock["tick"]
+        with open(out / "clock.csv", "a") as f:
+            f.write(f"{it},{clock['train_s'] / 60.0:.4f}\n")
         stop = clock["train_s"] >= session_end
         if clock["train_s"] >= clock["next_eval"] or stop:
             clock["next_eval"] += 60.0 * args.eval_every
