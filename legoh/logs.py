@@ -80,13 +80,24 @@ class ScalarCSV:
             self.columns = [ITERATION, *sorted(scalars)]
             self._writer.writerow(self.columns)
         new = sorted(set(scalars) - set(self.columns))
-        if new:
-            raise ValueError(f"{self.path}: new scalar column(s) {new} after the header "
-                             f"was written (columns: {self.columns[1:]}); log every "
-                             f"scalar from the first iteration")
+        if new:  # a campaign resumed by newer code logs more: widen, earlier rows blank
+            self._widen(new)
         row = {**{k: float(v) for k, v in scalars.items()}, ITERATION: int(iteration)}
         self._writer.writerow([row.get(c, "") for c in self.columns])
         self._file.flush()
+
+    def _widen(self, new: list[str]) -> None:
+        """Rewrite the file (atomically) with ``new`` columns appended to the header."""
+        self._file.close()
+        with self.path.open(newline="", encoding="utf-8") as f:
+            header, *rows = list(csv.reader(f))
+        self.columns = [*header, *new]
+        tmp = self.path.with_name(f".{self.path.name}.tmp")
+        with tmp.open("w", newline="", encoding="utf-8") as f:
+            csv.writer(f).writerows([self.columns, *(r + [""] * len(new) for r in rows)])
+        tmp.replace(self.path)
+        self._file = self.path.open("a", newline="", encoding="utf-8")
+        self._writer = csv.writer(self._file)
 
     def close(self) -> None:
         """Close the file (rows are already flushed)."""

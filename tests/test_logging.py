@@ -24,11 +24,14 @@ class TestScalarCSV:
         assert rows(tmp_path / "s.csv") == [["iteration", "loss", "reward"],
                                             ["0", "1.5", "0.25"], ["1", "", "0.5"]]
 
-    def test_new_column_refused(self, tmp_path):
+    def test_new_column_widens_the_header(self, tmp_path):
+        # a campaign resumed by newer code logs a new scalar: it used to stop the run
         with ScalarCSV(tmp_path / "s.csv") as log:
             log.write(0, {"loss": 1.0})
-            with pytest.raises(ValueError, match=r"new scalar column\(s\) \['kl'\]"):
-                log.write(1, {"loss": 1.0, "kl": 0.1})
+        with ScalarCSV(tmp_path / "s.csv", resume=True) as log:
+            log.write(1, {"loss": 2.0, "kl": 0.1})
+        assert rows(tmp_path / "s.csv") == [["iteration", "loss", "kl"], ["0", "1.0", ""],
+                                            ["1", "2.0", "0.1"]]
 
     def test_resume_appends_and_fresh_refuses(self, tmp_path):
         with ScalarCSV(tmp_path / "s.csv") as log:
