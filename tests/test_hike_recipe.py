@@ -177,3 +177,23 @@ def test_warm_start_loads_the_walker_and_refuses_another_critic(tmp_path) -> Non
         warm_start(other, WALKER, dims, _actor_on(other, WALKER)[2])
     env.close()
     ref_env.close()
+
+
+def test_an_oracle_is_rebuilt_from_its_own_head(tmp_path) -> None:
+    # Fault (stage 2, eval, play): the actor was built from this run's algo.tanh_bound, so a
+    # tanh-bounded oracle loaded into a linear head without a word.
+    from omegaconf import OmegaConf
+
+    from legoh.checkpoint import make_payload, save_checkpoint
+    from legoh.train.oracle import load_oracle_actor
+
+    bounded = compose_config("trail=flat", *SMALL, "algo.tanh_bound=4.8")
+    env, dims, models = _actor_on(bounded, None)
+    path = save_checkpoint(tmp_path / "oracle.pt", make_payload(
+        models=models, iteration=1, robot="h1", layout=dims.as_layout(),
+        config=OmegaConf.to_container(bounded, resolve=True, enum_to_str=True)))
+    actor = load_oracle_actor(compose_config("trail=flat", *SMALL), path, env)
+    assert actor.module[0].module[2].module.bound == 4.8
+    with pytest.raises(CheckpointError, match="robot"):
+        load_oracle_actor(compose_config("trail=flat", *SMALL, "robot=g1"), path, env)
+    env.close()

@@ -8,7 +8,7 @@ from pathlib import Path
 from omegaconf import DictConfig, OmegaConf
 
 from legoh.eval.benchmark import evaluate, make_eval_env
-from legoh.train.oracle import build_oracle, load_oracle_checkpoint, resolve_checkpoint
+from legoh.train.oracle import build_oracle, load_oracle_actor
 
 
 def build_actor(cfg: DictConfig, checkpoint: str | None = None):
@@ -19,12 +19,10 @@ def build_actor(cfg: DictConfig, checkpoint: str | None = None):
         return build_student_policy(cfg, checkpoint)
     env = make_eval_env(OmegaConf.merge(cfg, {"eval": {"robots": 1}}))
     try:
-        dims, actor, _, _ = build_oracle(env, cfg)
+        actor = (load_oracle_actor(cfg, checkpoint, env) if checkpoint
+                 else build_oracle(env, cfg)[1])
     finally:
         env.close()
-    if checkpoint:
-        path = resolve_checkpoint(checkpoint, cfg.robot.name)
-        actor.load_state_dict(load_oracle_checkpoint(path, cfg, dims)["models"]["actor"])
     return actor, None
 
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import torch
-from omegaconf import DictConfig
+from omegaconf import DictConfig, OmegaConf
 
 from legoh.checkpoint import CheckpointError, check_layout, load_checkpoint
 from legoh.envs.hiking_env import HikingEnv, make_env
@@ -111,6 +111,27 @@ def fold_category_onehot(state: dict) -> dict:
         state["models"][name] = sd
     state["layout"] = {**state["layout"], key: (PRIVILEGED_WIDTH,)}
     return state
+
+
+def oracle_net_config(cfg: DictConfig, state: dict) -> DictConfig:
+    """``cfg`` with the network settings a checkpoint was trained with (the head's
+    ``algo.tanh_bound``, ``algo.critic_hidden``): what rebuilds its actor and critic."""
+    algo = state.get("config", {}).get("algo", {})
+    critic = state.get("extra", {}).get("critic_hidden", algo.get("critic_hidden"))
+    return OmegaConf.merge(cfg, {"algo": {
+        "tanh_bound": algo.get("tanh_bound", cfg.algo.tanh_bound),
+        "critic_hidden": list(critic or cfg.algo.critic_hidden)}})
+
+
+def load_oracle_actor(cfg: DictConfig, path: str | Path, env: HikingEnv):
+    """The actor of oracle checkpoint ``path`` (``pretrained``: the robot's shipped one),
+    rebuilt from the checkpoint's own network settings for ``env``; a checkpoint of another
+    robot or observation layout is refused, naming the field."""
+    path = resolve_checkpoint(str(path), cfg.robot.name)
+    state = load_oracle_checkpoint(path, cfg, OracleInputDims.from_spec(env.observation_spec))
+    _, actor, _, _ = build_oracle(env, oracle_net_config(cfg, state))
+    actor.load_state_dict(state["models"]["actor"])
+    return actor
 
 
 def warm_start(cfg: DictConfig, path: Path, dims: OracleInputDims, models: dict) -> dict:

@@ -30,7 +30,12 @@ from legoh.modules.students import Student, StudentDims, make_student, unroll
 from legoh.objectives.distill import distillation_loss
 from legoh.objectives.ppo import make_ppo, ppo_update
 from legoh.runs import GracefulStop, resume_command
-from legoh.train.oracle import build_oracle, load_oracle_checkpoint, train_oracle
+from legoh.train.oracle import (
+    build_oracle,
+    load_oracle_checkpoint,
+    oracle_net_config,
+    train_oracle,
+)
 from legoh.train.runner import OnPolicyRunner, training_session
 
 
@@ -90,12 +95,9 @@ def ensure_oracle(cfg: DictConfig) -> Path:
 
 def load_oracle(cfg: DictConfig, path: Path, env: EnvBase):
     """The frozen oracle actor and its critic (the student's critic starts from it)."""
-    stage1 = oracle_config(cfg)
     state = load_oracle_checkpoint(path, cfg, OracleInputDims.from_spec(env.observation_spec))
-    # the critic as that oracle trained it (algo.critic_hidden; older checkpoints: default)
-    stage1.algo.critic_hidden = state.get("extra", {}).get("critic_hidden",
-                                                           stage1.algo.critic_hidden)
-    _, actor, critic, _ = build_oracle(env, stage1)
+    # the head and critic as that oracle trained them (older checkpoints: the defaults)
+    _, actor, critic, _ = build_oracle(env, oracle_net_config(oracle_config(cfg), state))
     actor.load_state_dict(state["models"]["actor"])
     critic.load_state_dict(state["models"]["critic"])
     actor.requires_grad_(False)
