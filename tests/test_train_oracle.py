@@ -253,3 +253,12 @@ def test_a_lagged_batch_is_clipped_against_the_current_policy() -> None:
     fresh = ppo_update(loss, still, data.clone(), algo, exact_kl=True, lagged=True)
     assert stale["kl_exact"] > 1e-4
     assert fresh["kl_exact"] == pytest.approx(0.0, abs=1e-7)
+
+
+def test_update_precision_auto_follows_the_cpu(monkeypatch) -> None:
+    from legoh.objectives import ppo
+
+    monkeypatch.setattr(ppo.Path, "read_text", lambda self: "fpu sse avx2 amx_bf16 amx_tile")
+    assert ppo.use_bfloat16("auto", "cpu") and not ppo.use_bfloat16("float32", "cpu")
+    monkeypatch.setattr(ppo.Path, "read_text", lambda self: "fpu sse avx2 avx512f")
+    assert not ppo.use_bfloat16("auto", "cpu") and ppo.use_bfloat16("bfloat16", "cpu")

@@ -14,6 +14,7 @@ float32.
 from __future__ import annotations
 
 from collections import defaultdict
+from pathlib import Path
 
 import torch
 from tensordict import TensorDictBase
@@ -128,6 +129,24 @@ def use_current_policy_as_reference(loss: ClipPPOLoss, data: TensorDictBase) -> 
         data.set(SCALE, dist.base_dist.scale)
 
 
+def fast_bfloat16(device_type: str) -> bool:
+    """Whether bfloat16 matrix products are fast on this device: a CUDA GPU that supports
+    them, or a CPU with AMX or AVX512-BF16 (elsewhere bfloat16 is emulated, slower than
+    float32)."""
+    if device_type == "cuda":
+        return torch.cuda.is_bf16_supported()
+    try:
+        flags = Path("/proc/cpuinfo").read_text().split()
+    except OSError:  # not Linux: no cheap way to know, stay with float32
+        return False
+    return "amx_bf16" in flags or "avx512_bf16" in flags
+
+
+def use_bfloat16(precision: str, device_type: str) -> bool:
+    """``algo.update_precision`` (float32 | bfloat16 | auto) resolved for a device."""
+    return precision == "bfloat16" or (precision == "auto" and fast_bfloat16(device_type))
+
+
 def ppo_update(loss: ClipPPOLoss, optimizer: torch.optim.Optimizer, data: TensorDictBase,
                cfg: OracleConfig, generator: torch.Generator | None = None,
                scale: float = 1.0, exact_kl: bool = False, lagged: bool = False
@@ -148,7 +167,8 @@ def ppo_update(loss: ClipPPOLoss, optimizer: torch.optim.Optimizer, data: Tensor
     count = 0
     size = data.shape[0] // cfg.minibatches
     device_type = next(loss.parameters()).device.type
-    bf16 = str(getattr(cfg.update_precision, "value", cfg.update_precision)) == "bfloat16"
+    bf16 = use_bfloat16(str(getattr(cfg.update_precision, "value", cfg.update_precision)),
+                        device_type)
     for _ in range(cfg.epochs):
         order = torch.randperm(data.shape[0], generator=generator)
         for k in range(cfg.minibatches):
