@@ -96,7 +96,7 @@ RANGES: list[tuple[str, Range]] = [
     ("collector.cpus_per_worker", NON_NEGATIVE), ("collector.gpus_per_worker", NON_NEGATIVE),
     ("collector.memory_per_worker", POSITIVE),
     # env
-    ("env.rewards.*", ANY), ("env.termination_penalty", ANY),
+    ("env.rewards.*", ANY),
     ("env.num_envs", COUNT), ("env.history", COUNT), ("env.depth.every", COUNT),
     ("env.depth.frames", COUNT), ("env.depth.width", COUNT), ("env.depth.height", COUNT),
     ("env.randomization.pool_size", COUNT),
