@@ -97,10 +97,8 @@ def make(robot: str, trail: str, n: int) -> tuple[HikingEnv, object]:
     with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
         cfg = compose("config", overrides=[f"robot={robot}", f"trail={trail}",
                                            "env.curriculum.enabled=false"])
-    env_cfg = OmegaConf.to_object(cfg.env)
-    env_cfg.num_envs = n
-    env = HikingEnv(OmegaConf.to_object(cfg.robot), OmegaConf.to_object(cfg.trail), env_cfg,
-                    OmegaConf.to_object(cfg.sim), seed=0)
+    env = HikingEnv(OmegaConf.to_object(cfg.robot), OmegaConf.to_object(cfg.trail),
+                    OmegaConf.to_object(cfg.env), OmegaConf.to_object(cfg.sim), n, seed=0)
     env.level[:] = LEVEL
     env.reset()
     return env, cfg
@@ -172,10 +170,8 @@ def tradeoff(robot: str, args: argparse.Namespace) -> list[dict]:
         cfg = compose("config", overrides=[
             f"robot={robot}", "trail=flat", "trail.levels=2", "trail.variants=1",
             f"trail.categories=[{','.join(ALL_CATEGORIES)}]", "env.curriculum.enabled=false"])
-    env_cfg = OmegaConf.to_object(cfg.env)
-    env_cfg.num_envs = 1
-    env = HikingEnv(OmegaConf.to_object(cfg.robot), OmegaConf.to_object(cfg.trail), env_cfg,
-                    OmegaConf.to_object(cfg.sim), seed=0)
+    env = HikingEnv(OmegaConf.to_object(cfg.robot), OmegaConf.to_object(cfg.trail),
+                    OmegaConf.to_object(cfg.env), OmegaConf.to_object(cfg.sim), 1, seed=0)
     n = 14 * 12  # 12 cameras a tile
     pos, mat = standing_cameras(env, n)
     d, fovy = cfg.env.depth, cfg.robot.camera.fovy_deg

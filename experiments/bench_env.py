@@ -71,10 +71,9 @@ def env_rate(robot: str, n: int, depth: bool, steps: int, scene=None,
         env = make_env(cfg, num_envs=n)
     else:
         from legoh.envs.hiking_env import HikingEnv
-        env_cfg = OmegaConf.to_object(cfg.env)
-        env_cfg.num_envs = n
         env = HikingEnv(OmegaConf.to_object(cfg.robot), OmegaConf.to_object(cfg.trail),
-                        env_cfg, OmegaConf.to_object(cfg.sim), seed=0, scene=scene)
+                        OmegaConf.to_object(cfg.env), OmegaConf.to_object(cfg.sim), n, seed=0,
+                        scene=scene)
     env.level[:] = LEVEL
     td = env.reset()
     gen = torch.Generator().manual_seed(0)

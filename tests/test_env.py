@@ -63,11 +63,10 @@ def make(flat: tuple[DictConfig, Scene]) -> Iterator[EnvFactory]:
         if cfg is None:
             cfg, scene = flat
         env_cfg = OmegaConf.to_object(cfg.env)
-        env_cfg.num_envs = num_envs
         for name, value in env_fields.items():
             setattr(env_cfg, name, value)
         env = HikingEnv(OmegaConf.to_object(cfg.robot), OmegaConf.to_object(cfg.trail),
-                        env_cfg, OmegaConf.to_object(cfg.sim), seed=seed, scene=scene)
+                        env_cfg, OmegaConf.to_object(cfg.sim), num_envs, seed=seed, scene=scene)
         made.append(env)
         return env
 
@@ -271,6 +270,17 @@ def test_robot_at_terminus_reaches(make: EnvFactory) -> None:
     assert flags(out, keys.FELL) == [False, False]
     assert flags(out, keys.TERMINATED) == [False, True]
     assert flags(out, keys.TRUNCATED) == [False, False]
+
+
+def test_reach_radius_of_training_and_of_evaluation() -> None:
+    """One key each: ``env.reach_radius`` in training, ``eval.reach_radius`` in evaluation."""
+    from legoh.envs.hiking_env import make_env
+
+    cfg = config("h1", "flat", "env.reach_radius=0.4", "eval.reach_radius=0.7")
+    for evaluation, radius in ((False, 0.4), (True, 0.7)):
+        env = make_env(cfg, num_envs=1, evaluation=evaluation)
+        assert env.reach_radius == radius
+        env.close()
 
 
 def test_timeout_truncates(make: EnvFactory) -> None:

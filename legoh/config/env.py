@@ -91,7 +91,8 @@ def depth_backend(value: DepthBackend | str) -> DepthBackend:
 
 @dataclass
 class DepthConfig:
-    """Egocentric depth input (camera pose and FOV: robot.camera)."""
+    """Egocentric depth input: the one home of the image's size and far plane (the camera's
+    pose and field of view: robot.camera)."""
 
     enabled: bool = False  # stages that need no depth do not pay for it
     # raymarch: multiray's images but for ~1 % of the pixels on stepping stones, 5-18x
@@ -101,7 +102,7 @@ class DepthConfig:
     frames: int = 4  # frame history length
     width: int = 32  # pixels: the cost of depth grows with pixels (experiments/bench_env.py)
     height: int = 24  # pixels
-    far: float = 3.0  # m: range clip
+    far: float = 3.0  # m: range clip; frames are depth / far - 0.5
 
 
 class Schedule(StrEnum):
@@ -180,16 +181,16 @@ class CurriculumConfig:
 
 @dataclass
 class EnvConfig:
-    """HikingEnv: batch, observations, rewards, terminations."""
+    """HikingEnv: observations, rewards, terminations (the batch size is the caller's:
+    ``make_env(cfg, num_envs)``)."""
 
-    num_envs: int = 16
     episode_length_s: float = 20.0  # s (training; evaluation sets 30)
     # actions are clipped to [-clip, clip] before scaling. 20 units of the per-joint scale
     # (robot.effort_action_scale x torque limit / kp) let a hip reach 1.25 rad, an ankle 0.25
     action_clip: float = 20.0
     goal_speed: float = 0.8  # m/s, the speed the goal-velocity reward asks for
     waypoint_radius: float = 0.6  # m: an expert waypoint counts as passed within this
-    reach_radius: float = 0.5  # m: terminus reached (0.5 training, 0.89 evaluation)
+    reach_radius: float = 0.5  # m: terminus reached in training (evaluation: eval.reach_radius)
     max_roll: float = 0.8  # rad, pose check
     max_pitch: float = 1.0  # rad, pose check
     min_base_height: float = 0.5  # fraction of the nominal base height above the ground

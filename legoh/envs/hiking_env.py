@@ -32,20 +32,20 @@ from legoh.envs.randomization import draw_physics
 from legoh.envs.scene import Scene, build_scene, feet_rest_height
 from legoh.envs.terrain import build_terrain_map
 
-EVAL_REACH_RADIUS = 0.89  # m: the benchmark's terminus radius (training: env.reach_radius)
-
 
 class HikingEnv(EnvBase):
     """Batched humanoid hiking; see the module docstring for the interface.
 
     Args:
         robot: robot config. trail: trail config (which tiles the map holds).
-        env: env config. sim: physics timing and backend. seed: terrain and env randomness.
+        env: env config. sim: physics timing and backend. num_envs: robots (the batch).
+        seed: terrain and env randomness.
         scene: reuse an already built scene (tests and benchmarks build it once).
+        evaluation: the benchmark's commands (``make_env`` also sets its reach radius).
     """
 
     def __init__(self, robot: RobotConfig, trail: TrailConfig, env: EnvConfig,
-                 sim: SimConfig, seed: int = 0, scene: Scene | None = None,
+                 sim: SimConfig, num_envs: int, seed: int = 0, scene: Scene | None = None,
                  evaluation: bool = False) -> None:
         self.scene = scene or build_scene(robot, build_terrain_map(trail, seed), sim.dt,
                                             hfield_chunk=sim.hfield_chunk)
@@ -53,17 +53,17 @@ class HikingEnv(EnvBase):
         self.physics = draw_physics(env.randomization, env.randomization.pool_size,
                                     np.random.default_rng(seed + 1))
         self.sim = make_physics(sim.backend, self.scene.model, self.robot.base_body,
-                                self.physics, env.num_envs, sim.decimation, sim.threads,
+                                self.physics, num_envs, sim.decimation, sim.threads,
                                 physics_device(sim), **sim_options(sim))
-        super().__init__(device=self.sim.device, batch_size=torch.Size([env.num_envs]))
+        super().__init__(device=self.sim.device, batch_size=torch.Size([num_envs]))
         self.cfg, self.sim_cfg, self.evaluation = env, sim, evaluation
-        self.num_envs, self.dtype = env.num_envs, self.sim.dtype
+        self.num_envs, self.dtype = num_envs, self.sim.dtype
         self.dt = sim.dt * sim.decimation
         self.max_steps = int(round(env.episode_length_s / self.dt))
         self.num_actions = self.robot.num_actions
         self.num_feet = len(self.robot.feet_bodies)
         self.num_categories = len(self.terrain.categories)
-        self.reach_radius = EVAL_REACH_RADIUS if evaluation else env.reach_radius
+        self.reach_radius = env.reach_radius
         self.gen = torch.Generator(device=self.device).manual_seed(seed)
         self.reward_terms, self.only_positive = rewards.reward_table(
             env, robot, self.robot.nominal_base_height, self.reach_radius)
@@ -268,14 +268,15 @@ class HikingEnv(EnvBase):
         super().close(**kwargs)
 
 
-def make_env(cfg, num_envs: int | None = None, evaluation: bool = False, **overrides
-             ) -> HikingEnv:
-    """HikingEnv from a composed run config (``conf/config.yaml``); overrides go to ``env``."""
+def make_env(cfg, num_envs: int, evaluation: bool = False, **overrides) -> HikingEnv:
+    """HikingEnv of ``num_envs`` robots from a composed run config (``conf/config.yaml``);
+    ``evaluation``: the benchmark's commands and reach radius (``eval.reach_radius``);
+    overrides go to ``env``."""
     from omegaconf import OmegaConf
 
     env_cfg: EnvConfig = OmegaConf.to_object(cfg.env)
-    if num_envs is not None:
-        env_cfg.num_envs = num_envs
+    if evaluation:
+        env_cfg.reach_radius = float(cfg.eval.reach_radius)
     known = set(env_cfg.__dataclass_fields__)  # a typo would otherwise set a dead attribute
     if unknown := sorted(set(overrides) - known):
         raise TypeError(f"make_env: unknown env setting(s) {unknown}; EnvConfig has "
@@ -283,4 +284,5 @@ def make_env(cfg, num_envs: int | None = None, evaluation: bool = False, **overr
     for key, value in overrides.items():
         setattr(env_cfg, key, value)
     return HikingEnv(OmegaConf.to_object(cfg.robot), OmegaConf.to_object(cfg.trail), env_cfg,
-                     OmegaConf.to_object(cfg.sim), seed=cfg.seed, evaluation=evaluation)
+                     OmegaConf.to_object(cfg.sim), num_envs, seed=cfg.seed,
+                     evaluation=evaluation)

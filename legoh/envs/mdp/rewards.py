@@ -7,9 +7,10 @@ the default, or ``table6``, with the robot's Table 6 column) and ``env.rewards``
 term returns a non-negative magnitude or a bonus, and its weight carries the sign (Table 6's
 weights, negative for penalties). Like legged_gym and Extreme Parkour, the weighted sum is
 scaled by the policy period dt, and where a preset clips the step's total at 0 the terms of
-``AFTER_CLIP`` (the fall penalty, ``termination``) are added after the clip. Bookkeeping (air time, contacts, waypoint index) happens in
-the env step, never here. A term's parameters come from config (:func:`term_params`) and
-sit beside its weight in the table (:func:`active_terms`). Formulas: docs/env.md.
+``AFTER_CLIP`` (the fall penalty, ``termination``) are added after the clip. Bookkeeping
+(air time, contacts, waypoint index) happens in the env step, never here. A term's
+parameters come from config (:func:`term_params`) and sit beside its weight in the table
+(:func:`active_terms`). Formulas: docs/env.md.
 """
 
 from __future__ import annotations

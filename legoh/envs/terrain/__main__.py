@@ -58,7 +58,7 @@ def main(argv: list[str] | None = None) -> list[Path]:
     Path(f"{stem}.{args.format}").write_bytes(mesh if isinstance(mesh, bytes) else mesh.encode())
     png = tile_png(tm, tile, Path(f"{stem}.png"))
     print(f"wrote {stem}.{args.format} and {png}: {len(tile.waypoints)} waypoints, "
-          f"path {tile.length:.1f} m, friction {tile.friction:.2f}")
+          f"path {tile.length:.1f} m")
     return [Path(f"{stem}.{args.format}"), png]
 
 
