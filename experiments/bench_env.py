@@ -41,11 +41,10 @@ os.environ.setdefault("WARP_CACHE_PATH", str(Path(__file__).resolve().parents[1]
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
-from hydra import compose, initialize_config_dir  # noqa: E402
 from mujoco import rollout  # noqa: E402
 from omegaconf import OmegaConf  # noqa: E402
 
-from legoh.config import register_configs  # noqa: E402
+from legoh.config.compose import compose_config  # noqa: E402
 from legoh.envs.hiking_env import make_env  # noqa: E402
 from legoh.envs.robots import CAMERA_NAME  # noqa: E402
 
@@ -56,11 +55,10 @@ LEVEL = 2
 
 
 def compose_cfg(robot: str, depth: bool, extra: list[str] | None = None):
-    register_configs()
-    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
-        return compose("config", overrides=[
-            f"robot={robot}", "trail=randommix", f"env.depth.enabled={str(depth).lower()}",
-            "env.curriculum.enabled=false", *(extra or [])])
+    """The benchmark's config: ``robot`` on RandomMix, curriculum off, depth on or off."""
+    return compose_config(f"robot={robot}", "trail=randommix",
+                          f"env.depth.enabled={str(depth).lower()}",
+                          "env.curriculum.enabled=false", *(extra or []))
 
 
 def env_rate(robot: str, n: int, depth: bool, steps: int, scene=None,
