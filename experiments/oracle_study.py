@@ -90,7 +90,9 @@ def main() -> None:
     write_markdown(OUT / "comparison.md", rows, label="Policy", title=title)
     write_csv(OUT / "comparison.csv", rows, label="policy")
     curve = plot_learning_curve(run.csv, OUT / "learning_curve.png",
-                                title=f"oracle PPO, {args.robot} on {args.trail}")
+                                title=f"oracle PPO, {args.robot} on {args.trail}",
+                                frames_per_iteration=cfg.algo.num_envs * cfg.algo.steps_per_env,
+                                dt=cfg.sim.dt * cfg.sim.decimation)
     cols = read_columns(run.csv)
     loop_rate = float(cols["frames_per_s"][1:].mean()) if len(cols["frames_per_s"]) > 1 else 0.0
     summary = {
