@@ -4,11 +4,15 @@
     python run.py robot=g1 trail=ditch
 """
 
+import logging
 import os
 import sys
 
 if sys.platform.startswith("linux"):  # headless rendering (stand, play): before mujoco loads
     os.environ.setdefault("MUJOCO_GL", "egl")
+# PyOpenGL (mujoco's renderer imports it) logs at INFO whether its optional accelerator
+# loaded; Hydra's console handler would print that line at the start of every run
+logging.getLogger("OpenGL.acceleratesupport").setLevel(logging.WARNING)
 
 import hydra  # noqa: E402
 from omegaconf import DictConfig  # noqa: E402

@@ -38,9 +38,8 @@ os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco is imported: headless
 import mujoco  # noqa: E402
 import torch  # noqa: E402
 import torchrl  # noqa: E402
-from hydra import compose, initialize_config_dir  # noqa: E402
 
-from legoh.config import register_configs  # noqa: E402
+from legoh.config.compose import compose_config  # noqa: E402
 from legoh.threads import torch_threads  # noqa: E402
 from legoh.train.oracle import train_oracle  # noqa: E402
 
@@ -59,20 +58,14 @@ SETTINGS = {  # label -> overrides
 TORCH_ONE_THREAD = {"sync x1, torch on 1 thread"}
 
 
-def compose_cfg(overrides: list[str]):
-    register_configs()
-    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
-        return compose("config", overrides=overrides)
-
-
 def measure(label: str, overrides: list[str], args) -> dict:
     """Train 1 + ``iterations`` iterations; median frames/s over all but the first."""
     frames = args.num_envs * args.steps_per_env
-    cfg = compose_cfg([f"algo.num_envs={args.num_envs}",
-                       f"algo.steps_per_env={args.steps_per_env}",
-                       f"algo.total_frames={frames * (args.iterations + 1)}",
-                       "algo.checkpoint_every=1000", "algo.trajectory_every=1000",
-                       *overrides])
+    cfg = compose_config(f"algo.num_envs={args.num_envs}",
+                         f"algo.steps_per_env={args.steps_per_env}",
+                         f"algo.total_frames={frames * (args.iterations + 1)}",
+                         "algo.checkpoint_every=1000", "algo.trajectory_every=1000",
+                         *overrides)
     threads = 1 if label in TORCH_ONE_THREAD else torch.get_num_threads()
     load = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as out, torch_threads(threads):

@@ -39,10 +39,9 @@ import mujoco
 import numpy as np
 import torch
 from bench_env import LEVEL, ceiling_rate, env_rate
-from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
-from legoh.config import register_configs
+from legoh.config.compose import compose_config
 from legoh.envs.hiking_env import HikingEnv
 from legoh.envs.sensors import camera_poses
 
@@ -93,14 +92,9 @@ def parity(got: np.ndarray, ref: np.ndarray, far: float) -> dict[str, float]:
 
 def make(robot: str, trail: str, n: int) -> tuple[HikingEnv, object]:
     """HikingEnv without depth on ``trail``'s full map, robots on level 2; and its config."""
-    register_configs()
-    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
-        cfg = compose("config", overrides=[f"robot={robot}", f"trail={trail}",
-                                           "env.curriculum.enabled=false"])
-    env_cfg = OmegaConf.to_object(cfg.env)
-    env_cfg.num_envs = n
-    env = HikingEnv(OmegaConf.to_object(cfg.robot), OmegaConf.to_object(cfg.trail), env_cfg,
-                    OmegaConf.to_object(cfg.sim), seed=0)
+    cfg = compose_config(f"robot={robot}", f"trail={trail}", "env.curriculum.enabled=false")
+    env = HikingEnv(OmegaConf.to_object(cfg.robot), OmegaConf.to_object(cfg.trail),
+                    OmegaConf.to_object(cfg.env), OmegaConf.to_object(cfg.sim), n, seed=0)
     env.level[:] = LEVEL
     env.reset()
     return env, cfg
@@ -167,15 +161,11 @@ def tradeoff(robot: str, args: argparse.Namespace) -> list[dict]:
     from legoh.envs.heightmap_depth import HeightmapDepthCamera
     from legoh.envs.terrain import ALL_CATEGORIES
 
-    register_configs()
-    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
-        cfg = compose("config", overrides=[
-            f"robot={robot}", "trail=flat", "trail.levels=2", "trail.variants=1",
-            f"trail.categories=[{','.join(ALL_CATEGORIES)}]", "env.curriculum.enabled=false"])
-    env_cfg = OmegaConf.to_object(cfg.env)
-    env_cfg.num_envs = 1
-    env = HikingEnv(OmegaConf.to_object(cfg.robot), OmegaConf.to_object(cfg.trail), env_cfg,
-                    OmegaConf.to_object(cfg.sim), seed=0)
+    cfg = compose_config(f"robot={robot}", "trail=flat", "trail.levels=2", "trail.variants=1",
+                         f"trail.categories=[{','.join(ALL_CATEGORIES)}]",
+                         "env.curriculum.enabled=false")
+    env = HikingEnv(OmegaConf.to_object(cfg.robot), OmegaConf.to_object(cfg.trail),
+                    OmegaConf.to_object(cfg.env), OmegaConf.to_object(cfg.sim), 1, seed=0)
     n = 14 * 12  # 12 cameras a tile
     pos, mat = standing_cameras(env, n)
     d, fovy = cfg.env.depth, cfg.robot.camera.fovy_deg

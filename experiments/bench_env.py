@@ -41,11 +41,10 @@ os.environ.setdefault("WARP_CACHE_PATH", str(Path(__file__).resolve().parents[1]
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
-from hydra import compose, initialize_config_dir  # noqa: E402
 from mujoco import rollout  # noqa: E402
 from omegaconf import OmegaConf  # noqa: E402
 
-from legoh.config import register_configs  # noqa: E402
+from legoh.config.compose import compose_config  # noqa: E402
 from legoh.envs.hiking_env import make_env  # noqa: E402
 from legoh.envs.robots import CAMERA_NAME  # noqa: E402
 
@@ -56,11 +55,10 @@ LEVEL = 2
 
 
 def compose_cfg(robot: str, depth: bool, extra: list[str] | None = None):
-    register_configs()
-    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
-        return compose("config", overrides=[
-            f"robot={robot}", "trail=randommix", f"env.depth.enabled={str(depth).lower()}",
-            "env.curriculum.enabled=false", *(extra or [])])
+    """The benchmark's config: ``robot`` on RandomMix, curriculum off, depth on or off."""
+    return compose_config(f"robot={robot}", "trail=randommix",
+                          f"env.depth.enabled={str(depth).lower()}",
+                          "env.curriculum.enabled=false", *(extra or []))
 
 
 def env_rate(robot: str, n: int, depth: bool, steps: int, scene=None,
@@ -71,10 +69,9 @@ def env_rate(robot: str, n: int, depth: bool, steps: int, scene=None,
         env = make_env(cfg, num_envs=n)
     else:
         from legoh.envs.hiking_env import HikingEnv
-        env_cfg = OmegaConf.to_object(cfg.env)
-        env_cfg.num_envs = n
         env = HikingEnv(OmegaConf.to_object(cfg.robot), OmegaConf.to_object(cfg.trail),
-                        env_cfg, OmegaConf.to_object(cfg.sim), seed=0, scene=scene)
+                        OmegaConf.to_object(cfg.env), OmegaConf.to_object(cfg.sim), n, seed=0,
+                        scene=scene)
     env.level[:] = LEVEL
     td = env.reset()
     gen = torch.Generator().manual_seed(0)

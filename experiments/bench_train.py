@@ -32,11 +32,10 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
-from hydra import compose, initialize_config_dir  # noqa: E402
 from omegaconf import OmegaConf  # noqa: E402
 from torchrl.collectors import Collector  # noqa: E402
 
-from legoh.config import register_configs  # noqa: E402
+from legoh.config.compose import compose_config  # noqa: E402
 from legoh.envs.hiking_env import make_env  # noqa: E402
 from legoh.eval.curves import read_columns  # noqa: E402
 from legoh.objectives.adaptation import adaptation_loss  # noqa: E402
@@ -52,9 +51,8 @@ OUT = ROOT / "experiments" / "results"
 
 
 def config(n: int, *extra: str):
-    register_configs()
-    with initialize_config_dir(str(ROOT / "conf"), version_base="1.3"):
-        return compose("config", overrides=["trail=flat", f"algo.num_envs={n}", *extra])
+    """The benchmark's config: ``n`` robots on the flat trail."""
+    return compose_config("trail=flat", f"algo.num_envs={n}", *extra)
 
 
 def bare_rate(env, steps: int) -> float:

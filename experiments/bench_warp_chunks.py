@@ -28,11 +28,10 @@ os.environ.setdefault("WARP_CACHE_PATH", str(Path(__file__).resolve().parents[1]
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
-from hydra import compose, initialize_config_dir  # noqa: E402
 from mujoco import rollout  # noqa: E402
 from omegaconf import OmegaConf  # noqa: E402
 
-from legoh.config import register_configs  # noqa: E402
+from legoh.config.compose import compose_config  # noqa: E402
 from legoh.envs.randomization import PhysicsDraw  # noqa: E402
 from legoh.envs.scene import Scene, build_scene  # noqa: E402
 from legoh.envs.sensors import (
@@ -158,9 +157,7 @@ def main() -> None:
     parser.add_argument("--skip-cpu", action="store_true", help="Warp rows only (large N)")
     parser.add_argument("--results", type=Path, default=RESULTS)
     args = parser.parse_args()
-    register_configs()
-    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
-        cfg = compose("config", overrides=["robot=h1", "trail=randommix"])
+    cfg = compose_config("robot=h1", "trail=randommix")
     terrain = build_terrain_map(OmegaConf.to_object(cfg.trail), cfg.seed)
     rows = []
     for chunk in args.chunks:

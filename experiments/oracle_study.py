@@ -20,9 +20,8 @@ from pathlib import Path
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 import torch  # noqa: E402
-from hydra import compose, initialize_config_dir  # noqa: E402
 
-from legoh.config import register_configs  # noqa: E402
+from legoh.config.compose import compose_config  # noqa: E402
 from legoh.envs.hiking_env import make_env  # noqa: E402
 from legoh.eval.benchmark import compare, evaluate  # noqa: E402
 from legoh.eval.curves import plot_learning_curve, read_columns  # noqa: E402
@@ -57,10 +56,8 @@ def main() -> None:
     parser.add_argument("--resume", action="store_true",
                         help="continue the last study's training up to --frames, then re-evaluate")
     args = parser.parse_args()
-    register_configs()
-    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
-        cfg = compose("config", overrides=[f"robot={args.robot}", f"trail={args.trail}",
-                                           f"algo.total_frames={args.frames}"])
+    cfg = compose_config(f"robot={args.robot}", f"trail={args.trail}",
+                         f"algo.total_frames={args.frames}")
     checkpoint = OUT / "train" / "oracle.pt"
     resume = str(checkpoint) if args.resume and checkpoint.exists() else None
     if not resume:
@@ -93,7 +90,9 @@ def main() -> None:
     write_markdown(OUT / "comparison.md", rows, label="Policy", title=title)
     write_csv(OUT / "comparison.csv", rows, label="policy")
     curve = plot_learning_curve(run.csv, OUT / "learning_curve.png",
-                                title=f"oracle PPO, {args.robot} on {args.trail}")
+                                title=f"oracle PPO, {args.robot} on {args.trail}",
+                                frames_per_iteration=cfg.algo.num_envs * cfg.algo.steps_per_env,
+                                dt=cfg.sim.dt * cfg.sim.decimation)
     cols = read_columns(run.csv)
     loop_rate = float(cols["frames_per_s"][1:].mean()) if len(cols["frames_per_s"]) > 1 else 0.0
     summary = {

@@ -61,12 +61,10 @@ def train_and_evaluate(cfg: DictConfig, out_dir: Path) -> None:
     print(Path(result["paths"]["markdown"]).read_text())
     print(f"[legoh] checkpoint:        {run.checkpoint}")
     print(f"[legoh] training log:      {run.csv} (CSV), {run.mcap} (MCAP)")
-    from legoh.eval.curves import PANELS, STUDENT_PANELS
-
-    student = cfg.algo.name != "oracle"
     curve = plot_learning_curve(run.csv, out_dir / "learning_curve.png",
                                 title=f"{cfg.algo.name} ({cfg.robot.name}, {cfg.trail.name})",
-                                panels=STUDENT_PANELS if student else PANELS)
+                                frames_per_iteration=cfg.algo.num_envs * cfg.algo.steps_per_env,
+                                dt=cfg.sim.dt * cfg.sim.decimation)
     print(f"[legoh] learning curve:    {curve}")
     for name, path in result["paths"].items():
         print(f"[legoh] benchmark {name + ':':13s} {path}")

@@ -19,6 +19,7 @@ import numpy as np  # noqa: E402
 from omegaconf import DictConfig, OmegaConf  # noqa: E402
 
 from legoh.config import RobotConfig, SimConfig  # noqa: E402
+from legoh.config.env import DepthConfig  # noqa: E402
 from legoh.envs.robots import (  # noqa: E402
     CAMERA_NAME,
     RobotInfo,
@@ -29,6 +30,8 @@ from legoh.envs.robots import (  # noqa: E402
     standing_base_height,
 )
 from legoh.envs.sensors import DepthRaycaster  # noqa: E402
+
+PREVIEW_SCALE = 4  # the picture's depth image in multiples of env.depth's size (128 x 96)
 
 
 def build_standing_scene(robot_cfg: RobotConfig, sim: SimConfig, render: bool = False
@@ -57,7 +60,7 @@ def hold_default_pose(model: mujoco.MjModel, data: mujoco.MjData, seconds: float
 
 
 def render_picture(model: mujoco.MjModel, data: mujoco.MjData, info: RobotInfo,
-                   robot_cfg: RobotConfig, path: Path) -> Path:
+                   robot_cfg: RobotConfig, depth_cfg: DepthConfig, path: Path) -> Path:
     """A PNG: the robot seen from the side-front, beside its egocentric depth image."""
     import matplotlib
 
@@ -71,15 +74,15 @@ def render_picture(model: mujoco.MjModel, data: mujoco.MjData, info: RobotInfo,
     with mujoco.Renderer(model, height=480, width=480) as renderer:
         renderer.update_scene(data, camera=cam)
         rgb = renderer.render()
-    c = robot_cfg.camera
-    depth = DepthRaycaster(model, c.fovy_deg, c.width * 2, c.height * 2, c.far).render_camera(
-        data, CAMERA_NAME)
+    c, d = robot_cfg.camera, depth_cfg
+    depth = DepthRaycaster(model, c.fovy_deg, d.width * PREVIEW_SCALE, d.height * PREVIEW_SCALE,
+                           d.far).render_camera(data, CAMERA_NAME)
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.6), gridspec_kw={"width_ratios": [1, 1.2]})
     axes[0].imshow(rgb)
     axes[0].set_title(f"{robot_cfg.name}: default pose after standing")
     axes[0].axis("off")
-    im = axes[1].imshow(depth, cmap="viridis_r", vmin=0.0, vmax=c.far)
+    im = axes[1].imshow(depth, cmap="viridis_r", vmin=0.0, vmax=d.far)
     axes[1].set_title(f"head camera depth (m), pitch {c.pitch_deg:.0f} deg")
     axes[1].axis("off")
     fig.colorbar(im, ax=axes[1], fraction=0.04)
@@ -99,6 +102,7 @@ def main(cfg: DictConfig, out_dir: Path) -> Path:
     print(f"[legoh] {info.name}: {info.num_actions} actions over {len(info.actuated_joints)} "
           f"actuated joints; base height {heights[-1]:.3f} m after {cfg.stand_seconds:.1f} s "
           f"(lowest {heights.min():.3f} m; nominal {info.nominal_base_height:.3f} m)")
-    path = render_picture(model, data, info, robot_cfg, out_dir / f"{info.name}_standing.png")
+    path = render_picture(model, data, info, robot_cfg, OmegaConf.to_object(cfg.env.depth),
+                          out_dir / f"{info.name}_standing.png")
     print(f"[legoh] picture of the robot: {path}")
     return path

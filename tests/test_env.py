@@ -19,6 +19,7 @@ from legoh.envs.curriculum import update_levels
 from legoh.envs.hiking_env import HikingEnv
 from legoh.envs.math3d import wrap_angle
 from legoh.envs.mdp.events import SPAWN_YAW_NOISE
+from legoh.envs.mdp.terminations import TERMINATIONS, Outcome, Termination
 from legoh.envs.robots import CAMERA_NAME
 from legoh.envs.scene import Scene, build_scene
 from legoh.envs.terrain import build_terrain_map
@@ -62,11 +63,10 @@ def make(flat: tuple[DictConfig, Scene]) -> Iterator[EnvFactory]:
         if cfg is None:
             cfg, scene = flat
         env_cfg = OmegaConf.to_object(cfg.env)
-        env_cfg.num_envs = num_envs
         for name, value in env_fields.items():
             setattr(env_cfg, name, value)
         env = HikingEnv(OmegaConf.to_object(cfg.robot), OmegaConf.to_object(cfg.trail),
-                        env_cfg, OmegaConf.to_object(cfg.sim), seed=seed, scene=scene)
+                        env_cfg, OmegaConf.to_object(cfg.sim), num_envs, seed=seed, scene=scene)
         made.append(env)
         return env
 
@@ -229,17 +229,36 @@ def test_tipped_robot_falls(make: EnvFactory, axis: int) -> None:
     assert flags(out, keys.DONE) == [True, False]
 
 
-def test_reward_clipped_at_zero_and_a_fall_costs_the_termination_penalty(
+def test_reward_clipped_at_zero_and_a_fall_costs_the_termination_term(
         make: EnvFactory) -> None:
     env = make(2, reward_preset="table6")  # the preset that clips
     td = env.reset()
     tilt = np.array([np.cos(np.pi / 4), np.sin(np.pi / 4), 0.0, 0.0])
     env.sim.qpos[0, 3:7] = torch.as_tensor(tilt)
-    reward = zero_step(env, td)[keys.REWARD][:, 0]
-    penalty = env.termination_penalty * env.dt
-    assert penalty < 0
+    out = zero_step(env, td)
+    reward, terms = out[keys.REWARD][:, 0], out[keys.REWARD_TERMS]
+    penalty = -200.0 * env.dt  # Table 6's preset: legged_gym's termination weight, x dt
+    assert env.reward_terms["termination"].weight == -200.0
+    # the fall penalty is a term of the table, logged as reward/termination
+    assert terms["termination"].tolist() == pytest.approx([penalty, 0.0])
     assert float(reward[0]) == pytest.approx(penalty, abs=1e-6)  # clipped total 0 + penalty
     assert float(reward[1]) >= 0.0  # standing: the clipped total, never negative
+
+
+def test_a_new_termination_term_ends_episodes(make: EnvFactory, monkeypatch) -> None:
+    def off_trail(env: HikingEnv, s) -> torch.Tensor:  # a stand-in: env 1 at its third step
+        return (env.steps >= 3) & (torch.arange(env.num_envs) == 1)
+
+    monkeypatch.setitem(TERMINATIONS, "off_trail", Termination(off_trail, Outcome.failure))
+    env = make(2)
+    td = env.reset()
+    for step in range(1, 4):
+        td = zero_step(env, td)
+        assert flags(td, (keys.INFO, "off_trail")) == [False, step == 3], step
+    assert flags(td, keys.TERMINATED) == [False, True]
+    assert flags(td, keys.TRUNCATED) == [False, False]
+    assert flags(td, keys.DONE) == [False, True]
+    assert env.fell_last.tolist() == [False, True]  # a failure: the gate counts it
 
 
 def test_robot_at_terminus_reaches(make: EnvFactory) -> None:
@@ -251,6 +270,17 @@ def test_robot_at_terminus_reaches(make: EnvFactory) -> None:
     assert flags(out, keys.FELL) == [False, False]
     assert flags(out, keys.TERMINATED) == [False, True]
     assert flags(out, keys.TRUNCATED) == [False, False]
+
+
+def test_reach_radius_of_training_and_of_evaluation() -> None:
+    """One key each: ``env.reach_radius`` in training, ``eval.reach_radius`` in evaluation."""
+    from legoh.envs.hiking_env import make_env
+
+    cfg = config("h1", "flat", "env.reach_radius=0.4", "eval.reach_radius=0.7")
+    for evaluation, radius in ((False, 0.4), (True, 0.7)):
+        env = make_env(cfg, num_envs=1, evaluation=evaluation)
+        assert env.reach_radius == radius
+        env.close()
 
 
 def test_timeout_truncates(make: EnvFactory) -> None:

@@ -49,6 +49,7 @@ def neutral(**changes: object) -> StepState:
         level=zeros(N, dtype=torch.int64), command=zeros(N, 2), phase=zeros(N, F),
         stance=torch.ones(N, F, dtype=torch.bool), feet_height=zeros(N, F),
         swing_target=zeros(N, F), advance=torch.ones(N, dtype=torch.bool),
+        failed=zeros(N, dtype=torch.bool),
     )
     return replace(state, **{k: torch.as_tensor(v) for k, v in changes.items()})
 
@@ -133,6 +134,8 @@ CASES: dict[str, tuple[dict, list[float], str]] = {
         {"swing_target": rows([0.0, 0.0], [0.05, 0.0]), "feet_height": rows([0.0, 0.0],
                                                                           [0.0, 0.0])},
         [1.0, np.exp(-0.5)], "1 on the clock's foot lift, exp(-err^2 / 0.005) off it"),
+    "termination": ({"failed": np.array([False, True])}, [0.0, 1.0],
+                    "1 on the step an episode ends in a failure"),
 }
 
 
@@ -197,6 +200,16 @@ def test_compute_rewards_total_is_dt_times_weighted_sum() -> None:
     for name, part in expected_parts.items():
         np.testing.assert_allclose(parts[name], part, rtol=1e-4)
     np.testing.assert_allclose(total, sum(expected_parts.values()), rtol=1e-4)
+
+
+def test_clip_at_zero_leaves_the_termination_term_out() -> None:
+    state = neutral(unsafe_contacts=np.array([1, 0]), failed=np.array([True, False]),
+                    lin_vel_world=rows([0.0, 0.0, 0.0], [0.4, 0.0, 0.0]))
+    weights = {"collision": -10.0, "tracking_goal_vel": 10.0, "termination": -200.0}
+    total, parts = compute_rewards(state, active_terms(weights, PARAMS), clip=True)
+    np.testing.assert_allclose(parts["termination"], [-200.0 * DT, 0.0])
+    # env 0: -10 dt clipped to 0, then the fall's -200 dt; env 1: 10 x 0.5 dt, unclipped
+    np.testing.assert_allclose(total, [-200.0 * DT, 5.0 * DT], rtol=1e-4)
 
 
 def test_compute_rewards_with_no_terms_is_zero() -> None:

@@ -34,3 +34,16 @@ def test_stand_renders_headless_without_mujoco_gl(tmp_path: Path) -> None:
                           capture_output=True, timeout=300)
     assert done.returncode == 0, done.stderr[-2000:]
     assert (tmp_path / "h1_standing.png").stat().st_size > 0
+
+
+def test_a_run_starts_without_third_party_log_lines(tmp_path: Path) -> None:
+    """``python run.py`` prints only legoh's lines. Failed before with PyOpenGL's
+    "[OpenGL.acceleratesupport][INFO] - No OpenGL_accelerate module loaded" at every start
+    (Hydra's console handler shows INFO from any logger)."""
+    done = subprocess.run([sys.executable, "run.py", "mode=stand", "stand_seconds=0.05",
+                           f"hydra.run.dir={tmp_path}"], cwd=ROOT, text=True,
+                          capture_output=True, timeout=300,
+                          env={**os.environ, "OMP_NUM_THREADS": "1"})
+    assert done.returncode == 0, done.stderr[-2000:]
+    lines = (done.stdout + done.stderr).splitlines()
+    assert lines and all(line.startswith("[legoh]") for line in lines), lines

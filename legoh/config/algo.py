@@ -17,7 +17,7 @@ class OracleConfig:
     """Stage 1: PPO with privileged inputs. Defaults: Extreme Parkour / legged_gym (see docs)."""
 
     name: str = "oracle"
-    num_envs: int = 256  # overrides env.num_envs for training
+    num_envs: int = 256  # robots the training env steps (its batch)
     steps_per_env: int = 24  # policy steps per env per iteration
     total_frames: int = 1_500_000  # env steps of the main job: ~10 min here, then the benchmark
     lr: float = 1e-3  # rsl_rl / mjlab; adapted on the exact Gaussian KL

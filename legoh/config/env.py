@@ -29,6 +29,9 @@ def table6_weights() -> dict[str, float]:
         "base_height": -100.0,
         "pn_distance": 0.0,
         "dof_pos_limits": 0.0,
+        # legged_gym's termination term (Cassie: -200), per fall x dt, paid after the clip:
+        # without the clip and this term our first 2M-frame study learned to dive at the goal
+        "termination": -200.0,
     }
 
 
@@ -53,18 +56,19 @@ def walk_weights() -> dict[str, float]:
         "feet_swing_height": -20.0,
         "feet_phase": 1.0,
         "pn_distance": 0.0,
+        # unitree_rl_gym has no termination term: a fall forfeits the rest of the episode's
+        # reward (-4 per fall kept our first walk attempt standing)
+        "termination": 0.0,
     }
 
 
-# name -> (weights, clip the step's total at 0, termination penalty per fall, x dt)
+# name -> (weights, clip the step's total at 0)
 REWARD_PRESETS = {
-    # legged_gym's defaults around Table 6 (Extreme Parkour trains with them): without the
-    # clip and the penalty our first 2M-frame study learned to dive toward the goal.
-    "table6": (table6_weights, True, -200.0),
-    # every step of a standing robot earns (alive, the kernels), so nothing is clipped and
-    # falling forfeits the rest of the episode's reward, on top of the penalty
-    # (unitree_rl_gym: no termination term; -4 per fall kept our first walk attempt standing)
-    "walk": (walk_weights, False, 0.0),
+    # legged_gym's defaults around Table 6 (Extreme Parkour trains with them), with its
+    # termination term (in the weights) added after the clip
+    "table6": (table6_weights, True),
+    # every step of a standing robot earns (alive, the kernels), so nothing is clipped
+    "walk": (walk_weights, False),
 }
 
 
@@ -87,7 +91,8 @@ def depth_backend(value: DepthBackend | str) -> DepthBackend:
 
 @dataclass
 class DepthConfig:
-    """Egocentric depth input (camera pose and FOV: robot.camera)."""
+    """Egocentric depth input: the one home of the image's size and far plane (the camera's
+    pose and field of view: robot.camera)."""
 
     enabled: bool = False  # stages that need no depth do not pay for it
     # raymarch: multiray's images but for ~1 % of the pixels on stepping stones, 5-18x
@@ -97,7 +102,7 @@ class DepthConfig:
     frames: int = 4  # frame history length
     width: int = 32  # pixels: the cost of depth grows with pixels (experiments/bench_env.py)
     height: int = 24  # pixels
-    far: float = 3.0  # m: range clip
+    far: float = 3.0  # m: range clip; frames are depth / far - 0.5
 
 
 class Schedule(StrEnum):
@@ -176,16 +181,16 @@ class CurriculumConfig:
 
 @dataclass
 class EnvConfig:
-    """HikingEnv: batch, observations, rewards, terminations."""
+    """HikingEnv: observations, rewards, terminations (the batch size is the caller's:
+    ``make_env(cfg, num_envs)``)."""
 
-    num_envs: int = 16
     episode_length_s: float = 20.0  # s (training; evaluation sets 30)
     # actions are clipped to [-clip, clip] before scaling. 20 units of the per-joint scale
     # (robot.effort_action_scale x torque limit / kp) let a hip reach 1.25 rad, an ankle 0.25
     action_clip: float = 20.0
     goal_speed: float = 0.8  # m/s, the speed the goal-velocity reward asks for
     waypoint_radius: float = 0.6  # m: an expert waypoint counts as passed within this
-    reach_radius: float = 0.5  # m: terminus reached (0.5 training, 0.89 evaluation)
+    reach_radius: float = 0.5  # m: terminus reached in training (evaluation: eval.reach_radius)
     max_roll: float = 0.8  # rad, pose check
     max_pitch: float = 1.0  # rad, pose check
     min_base_height: float = 0.5  # fraction of the nominal base height above the ground
@@ -205,8 +210,6 @@ class EnvConfig:
         sorted(set(table6_weights()) | set(walk_weights()))))
     # None: the preset's. True clips the step's total at 0 (legged_gym's only_positive_rewards)
     only_positive_rewards: bool | None = None
-    # None: the preset's. legged_gym's "termination" term (Cassie: -200), x dt per fall
-    termination_penalty: float | None = None
     tracking_sigma: float = 0.25  # m^2/s^2, the velocity kernels' exp(-err^2 / sigma)
     air_time_target: float = 0.5  # s, Table 6 feet air time
     edge_min_level: int = 3  # the feet-edge term counts on levels above this one

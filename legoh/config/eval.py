@@ -23,5 +23,6 @@ class EvalConfig:
     # (22 m) it would take 27.5 of the 30 s. None: every robot at the trail start
     spawn_remaining: list[float] | None = field(default_factory=lambda: [2.0, 10.0])
     tc_radius: float = 0.3  # m: TC counts a waypoint the torso passed within this
+    reach_radius: float = 0.89  # m: the terminus counts as reached within this (env.reach_radius)
     # Table 5's randomisation (physics draws, pushes, action delay) on from the first step
     randomization: bool = True

@@ -65,13 +65,11 @@ RANGES: list[tuple[str, Range]] = [
     ("robot.torque_limit.*", POSITIVE), ("robot.default_pose.*", ANY),
     ("robot.table6_weights.*", ANY), ("robot.camera.pos", ANY),
     ("robot.camera.pitch_deg", Range(-90, 90)), ("robot.camera.fovy_deg", Range(0, 180, True)),
-    ("robot.camera.width", COUNT), ("robot.camera.height", COUNT),
-    ("robot.camera.near", POSITIVE), ("robot.camera.far", POSITIVE),
     ("robot.action_scale", POSITIVE), ("robot.effort_action_scale", POSITIVE),
     ("robot.nominal_base_height", POSITIVE),
     # trail
     ("trail.levels", COUNT), ("trail.variants", COUNT),
-    ("trail.segment_length", POSITIVE_INTERVAL), ("trail.friction_range", NON_NEGATIVE_INTERVAL),
+    ("trail.segment_length", POSITIVE_INTERVAL),
     ("trail.clearance", NON_NEGATIVE), ("trail.border", NON_NEGATIVE),
     ("trail.start_pad", NON_NEGATIVE), ("trail.max_elevation", NON_NEGATIVE),
     ("trail.detour_noise", NON_NEGATIVE), ("trail.hill_rise", NON_NEGATIVE),
@@ -90,14 +88,15 @@ RANGES: list[tuple[str, Range]] = [
     # eval
     ("eval.seconds", POSITIVE), ("eval.levels", NON_NEGATIVE), ("eval.seed", NON_NEGATIVE),
     ("eval.spawn_remaining", NON_NEGATIVE_INTERVAL), ("eval.tc_radius", POSITIVE),
+    ("eval.reach_radius", POSITIVE),
     ("eval.*", COUNT),
     # collector
     ("collector.workers", COUNT), ("collector.init.num_cpus", COUNT),
     ("collector.cpus_per_worker", NON_NEGATIVE), ("collector.gpus_per_worker", NON_NEGATIVE),
     ("collector.memory_per_worker", POSITIVE),
     # env
-    ("env.rewards.*", ANY), ("env.termination_penalty", ANY),
-    ("env.num_envs", COUNT), ("env.history", COUNT), ("env.depth.every", COUNT),
+    ("env.rewards.*", ANY),
+    ("env.history", COUNT), ("env.depth.every", COUNT),
     ("env.depth.frames", COUNT), ("env.depth.width", COUNT), ("env.depth.height", COUNT),
     ("env.randomization.pool_size", COUNT),
     ("env.min_base_height", FRACTION), ("env.command.zero_prob", FRACTION),
@@ -118,8 +117,7 @@ RANGES: list[tuple[str, Range]] = [
     ("env.*", POSITIVE),  # durations, radii, angles, clips, speeds, sigmas
 ]
 # pairs of keys that must be ordered (first <= second) when both are set
-ORDERED = [("robot.camera.near", "robot.camera.far"),
-           ("env.curriculum.down", "env.curriculum.up")]
+ORDERED = [("env.curriculum.down", "env.curriculum.up")]
 
 
 def numeric_leaves(node: Any, path: str = "") -> Iterator[tuple[str, Any]]:

@@ -13,16 +13,13 @@ class UpperBody(Enum):
 
 @dataclass
 class CameraConfig:
-    """Egocentric depth camera, fixed to ``body`` (pose in that body's frame)."""
+    """Egocentric depth camera, fixed to ``body`` (pose in that body's frame). The image it
+    gives the policy (size, far plane, rate) is the env's: ``env.depth``."""
 
     body: str = "torso_link"
     pos: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])  # m, body frame
     pitch_deg: float = 30.0  # downward tilt from horizontal, degrees
     fovy_deg: float = 58.0  # vertical field of view, degrees
-    width: int = 64  # pixels
-    height: int = 48  # pixels
-    near: float = 0.05  # m
-    far: float = 3.0  # m: depth beyond is clipped
 
 
 @dataclass

@@ -21,7 +21,6 @@ class TrailConfig:
     segment_length: list[float] = field(default_factory=lambda: [3.0, 5.0])  # m, min, max
     primitives: list[str] = field(default_factory=list)  # primitive pool; empty: category's
     max_elevation: float = 1.5  # m, a tile's ground keeps within this of its start height
-    friction_range: list[float] = field(default_factory=lambda: [0.6, 2.0])  # -, U(lo, hi)
     edge_grade: float = 2.0  # -, rise over run between cells that marks an edge
     plan_resolution: float = 0.1  # m per cell of the detour-planning occupancy grid
     detour_noise: float = 0.5  # -, random extra cost per planning cell (detour diversity)

@@ -5,8 +5,9 @@ The interface (keys in ``legoh.keys``; docs/env.md has shapes, frames and units)
 * action (N, A): joint offsets; target = default + action_scale * clip(action).
 * observations: proprioception and its history, scandots, privileged state, goal inputs,
   expert near goals, optional depth frames; ``("info", ...)`` signals for metrics and logs.
-* ``terminated``: fell (pose check) or reached the terminus; ``truncated``: timeout or a
-  diverged simulation that was reset. ``done`` = either.
+* ``terminated``: a success or failure term of ``mdp.terminations`` fired (reached the
+  terminus, fell); ``truncated``: a time-out term fired, or the simulation diverged and was
+  reset. ``done`` = either.
 
 The env is orchestration: physics from ``legoh.envs.physics`` (its device is the env's),
 one ``StepState`` per step (``mdp.state``), then the term tables of ``mdp.events``,
@@ -25,13 +26,11 @@ from legoh import keys
 from legoh.config import EnvConfig, RobotConfig, SimConfig, TrailConfig
 from legoh.envs.mdp import events, observations, rewards
 from legoh.envs.mdp.state import AirTime, Goals, Grid, Memory, TrailTable, as_index, compute_state
-from legoh.envs.mdp.terminations import TERMINATIONS
+from legoh.envs.mdp.terminations import TERMINATIONS, Outcome, check_terminations
 from legoh.envs.physics import make_physics, physics_device, sim_options
 from legoh.envs.randomization import draw_physics
 from legoh.envs.scene import Scene, build_scene, feet_rest_height
 from legoh.envs.terrain import build_terrain_map
-
-EVAL_REACH_RADIUS = 0.89  # m: the benchmark's terminus radius (training: env.reach_radius)
 
 
 class HikingEnv(EnvBase):
@@ -39,12 +38,14 @@ class HikingEnv(EnvBase):
 
     Args:
         robot: robot config. trail: trail config (which tiles the map holds).
-        env: env config. sim: physics timing and backend. seed: terrain and env randomness.
+        env: env config. sim: physics timing and backend. num_envs: robots (the batch).
+        seed: terrain and env randomness.
         scene: reuse an already built scene (tests and benchmarks build it once).
+        evaluation: the benchmark's commands (``make_env`` also sets its reach radius).
     """
 
     def __init__(self, robot: RobotConfig, trail: TrailConfig, env: EnvConfig,
-                 sim: SimConfig, seed: int = 0, scene: Scene | None = None,
+                 sim: SimConfig, num_envs: int, seed: int = 0, scene: Scene | None = None,
                  evaluation: bool = False) -> None:
         self.scene = scene or build_scene(robot, build_terrain_map(trail, seed), sim.dt,
                                             hfield_chunk=sim.hfield_chunk)
@@ -52,20 +53,21 @@ class HikingEnv(EnvBase):
         self.physics = draw_physics(env.randomization, env.randomization.pool_size,
                                     np.random.default_rng(seed + 1))
         self.sim = make_physics(sim.backend, self.scene.model, self.robot.base_body,
-                                self.physics, env.num_envs, sim.decimation, sim.threads,
+                                self.physics, num_envs, sim.decimation, sim.threads,
                                 physics_device(sim), **sim_options(sim))
-        super().__init__(device=self.sim.device, batch_size=torch.Size([env.num_envs]))
+        super().__init__(device=self.sim.device, batch_size=torch.Size([num_envs]))
         self.cfg, self.sim_cfg, self.evaluation = env, sim, evaluation
-        self.num_envs, self.dtype = env.num_envs, self.sim.dtype
+        self.num_envs, self.dtype = num_envs, self.sim.dtype
         self.dt = sim.dt * sim.decimation
         self.max_steps = int(round(env.episode_length_s / self.dt))
         self.num_actions = self.robot.num_actions
         self.num_feet = len(self.robot.feet_bodies)
         self.num_categories = len(self.terrain.categories)
-        self.reach_radius = EVAL_REACH_RADIUS if evaluation else env.reach_radius
+        self.reach_radius = env.reach_radius
         self.gen = torch.Generator(device=self.device).manual_seed(seed)
-        self.reward_terms, self.only_positive, self.termination_penalty = (
-            rewards.reward_table(env, robot, self.robot.nominal_base_height, self.reach_radius))
+        self.reward_terms, self.only_positive = rewards.reward_table(
+            env, robot, self.robot.nominal_base_height, self.reach_radius)
+        self.terminations = dict(TERMINATIONS)
         self.depth_cam = (self.sim.make_depth_camera(robot.camera.fovy_deg, env.depth.width,
                                                      env.depth.height, env.depth.far,
                                                      env.depth.backend)
@@ -115,7 +117,8 @@ class HikingEnv(EnvBase):
                                     device=dev) if c.curriculum.enabled
                       else torch.zeros(n, dtype=torch.int64, device=dev))
         self.steps = torch.zeros(n, dtype=torch.int64, device=dev)
-        self.fell_last = torch.zeros(n, dtype=torch.bool, device=dev)  # the last step's falls
+        # the last step's failures (falls): the randomisation gate counts them
+        self.fell_last = torch.zeros(n, dtype=torch.bool, device=dev)
         self.ctrl = self.default_pose.expand(n, -1).clone()
         joints = len(self.robot.actuated_joints)
         self.action_delay = events.ActionDelay(n, c.randomization.max_action_delay,
@@ -137,7 +140,7 @@ class HikingEnv(EnvBase):
         n, f32, none = self.num_envs, torch.float32, self._diverged
         history = self.history.buf.clone()
         self.state = compute_state(self)
-        sample = self._observe({"reached": none, "fell": none, "diverged": none})
+        sample = self._observe(self._no_flags(none))
         self.history.buf = history
         self.observation_spec = observations.spec_of(sample)
         clip = self.cfg.action_clip
@@ -162,8 +165,12 @@ class HikingEnv(EnvBase):
             self._reset_envs(ids)
         self.state = compute_state(self)
         self.state.advance = fresh  # only reset envs get a new history entry
-        none = torch.zeros_like(fresh)
-        return self._observe({"reached": none, "fell": none, "diverged": none})
+        return self._observe(self._no_flags(torch.zeros_like(fresh)))
+
+    def _no_flags(self, none: torch.Tensor) -> dict[str, torch.Tensor]:
+        """The info flags of a step that ended nothing (``none``: (N,) False)."""
+        names = [k for k, t in self.terminations.items() if t.outcome != Outcome.time_out]
+        return {**dict.fromkeys(names, none), "diverged": none}
 
     def _reset_envs(self, ids: torch.Tensor) -> None:
         """The reset events (curriculum, spawn, delay, command), then the stateful terms."""
@@ -194,25 +201,19 @@ class HikingEnv(EnvBase):
         self.randomization.step()
         diverged = self._handle_divergence(time_before)
         s = self.state = compute_state(self, action)
-        reward, self.reward_parts = rewards.compute_rewards(s, self.reward_terms)
-        if self.only_positive:
-            reward = torch.clamp(reward, min=0.0)
-        flags = {name: fn(self, s) for name, (fn, _) in TERMINATIONS.items()}
-        fell = flags["fell"] & ~diverged
-        terminated = (flags["reached"] | fell) & ~diverged
-        timeout = torch.stack([flags[k] for k, (_, t) in TERMINATIONS.items() if t]).any(0)
-        truncated = (timeout | diverged) & ~terminated
-        reward = reward + self.termination_penalty * self.dt * (fell & ~flags["reached"])
-        self.fell_last = fell & ~flags["reached"]
+        ends = check_terminations(self.terminations, self, s, diverged)
+        s.failed = self.fell_last = ends.failed
+        reward, self.reward_parts = rewards.compute_rewards(s, self.reward_terms,
+                                                            self.only_positive)
         self.memory.update(s)
         self.frame_clock += 1
         due = self.depth_cam is not None and self.frame_clock % self.cfg.depth.every == 0
         self.depth.push(self.depth.render(self) if due else None)
-        out = self._observe({"reached": flags["reached"], "fell": fell, "diverged": diverged})
+        out = self._observe({**ends.flags, "diverged": diverged})
         out.set(keys.REWARD, reward.float().unsqueeze(-1))
-        out.set(keys.TERMINATED, terminated.unsqueeze(-1))
-        out.set(keys.TRUNCATED, truncated.unsqueeze(-1))
-        out.set(keys.DONE, (terminated | truncated).unsqueeze(-1))
+        out.set(keys.TERMINATED, ends.terminated.unsqueeze(-1))
+        out.set(keys.TRUNCATED, ends.truncated.unsqueeze(-1))
+        out.set(keys.DONE, (ends.terminated | ends.truncated).unsqueeze(-1))
         return out
 
     def _handle_divergence(self, time_before: torch.Tensor) -> torch.Tensor:
@@ -267,14 +268,15 @@ class HikingEnv(EnvBase):
         super().close(**kwargs)
 
 
-def make_env(cfg, num_envs: int | None = None, evaluation: bool = False, **overrides
-             ) -> HikingEnv:
-    """HikingEnv from a composed run config (``conf/config.yaml``); overrides go to ``env``."""
+def make_env(cfg, num_envs: int, evaluation: bool = False, **overrides) -> HikingEnv:
+    """HikingEnv of ``num_envs`` robots from a composed run config (``conf/config.yaml``);
+    ``evaluation``: the benchmark's commands and reach radius (``eval.reach_radius``);
+    overrides go to ``env``."""
     from omegaconf import OmegaConf
 
     env_cfg: EnvConfig = OmegaConf.to_object(cfg.env)
-    if num_envs is not None:
-        env_cfg.num_envs = num_envs
+    if evaluation:
+        env_cfg.reach_radius = float(cfg.eval.reach_radius)
     known = set(env_cfg.__dataclass_fields__)  # a typo would otherwise set a dead attribute
     if unknown := sorted(set(overrides) - known):
         raise TypeError(f"make_env: unknown env setting(s) {unknown}; EnvConfig has "
@@ -282,4 +284,5 @@ def make_env(cfg, num_envs: int | None = None, evaluation: bool = False, **overr
     for key, value in overrides.items():
         setattr(env_cfg, key, value)
     return HikingEnv(OmegaConf.to_object(cfg.robot), OmegaConf.to_object(cfg.trail), env_cfg,
-                     OmegaConf.to_object(cfg.sim), seed=cfg.seed, evaluation=evaluation)
+                     OmegaConf.to_object(cfg.sim), num_envs, seed=cfg.seed,
+                     evaluation=evaluation)

@@ -252,11 +252,6 @@ def actuated_qpos_adr(model: mujoco.MjModel, info: RobotInfo) -> np.ndarray:
     return np.array([model.jnt_qposadr[model.joint(j).id] for j in info.actuated_joints])
 
 
-def actuated_dof_adr(model: mujoco.MjModel, info: RobotInfo) -> np.ndarray:
-    """qvel addresses of the actuated joints, in actuator order."""
-    return np.array([model.jnt_dofadr[model.joint(j).id] for j in info.actuated_joints])
-
-
 def reset_to_default(model: mujoco.MjModel, data: mujoco.MjData, info: RobotInfo,
                      base_xyz: np.ndarray, yaw: float = 0.0) -> None:
     """Place the robot at ``base_xyz`` (world, m) facing ``yaw`` (rad) in its default pose."""

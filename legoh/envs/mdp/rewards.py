@@ -6,9 +6,11 @@ the default, or ``table6``, with the robot's Table 6 column) and ``env.rewards``
 (:func:`preset_weights`); zero-weight terms are never computed. Sign convention: every
 term returns a non-negative magnitude or a bonus, and its weight carries the sign (Table 6's
 weights, negative for penalties). Like legged_gym and Extreme Parkour, the weighted sum is
-scaled by the policy period dt. Bookkeeping (air time, contacts, waypoint index) happens in
-the env step, never here. A term's parameters come from config (:func:`term_params`) and
-sit beside its weight in the table (:func:`active_terms`). Formulas: docs/env.md.
+scaled by the policy period dt, and where a preset clips the step's total at 0 the terms of
+``AFTER_CLIP`` (the fall penalty, ``termination``) are added after the clip. Bookkeeping
+(air time, contacts, waypoint index) happens in the env step, never here. A term's
+parameters come from config (:func:`term_params`) and sit beside its weight in the table
+(:func:`active_terms`). Formulas: docs/env.md.
 """
 
 from __future__ import annotations
@@ -23,6 +25,9 @@ from legoh.envs.mdp.state import StepState
 
 RewardFn = Callable[..., torch.Tensor]  # fn(state, **params) -> (N,)
 REWARD_TERMS: dict[str, RewardFn] = {}
+# added to the step's total after its clip at 0 (legged_gym: a fall costs its penalty even
+# where every other term is clipped away)
+AFTER_CLIP = frozenset({"termination"})
 
 
 def reward_term(fn: RewardFn) -> RewardFn:
@@ -200,6 +205,13 @@ def feet_phase(s: StepState, sigma: float) -> torch.Tensor:
     return torch.exp(-((s.feet_height - s.swing_target) ** 2).sum(1) / sigma)
 
 
+@reward_term
+def termination(s: StepState) -> torch.Tensor:
+    """1 on the step an episode ends in a failure (a fall: ``mdp.terminations``), else 0;
+    legged_gym's termination term, in ``AFTER_CLIP``."""
+    return s.failed.to(s.yaw.dtype)
+
+
 def preset_weights(preset: str, overrides: dict[str, float | None],
                    robot_table6: dict[str, float]) -> dict[str, float]:
     """Weights of a reward preset (``legoh.config.env.REWARD_PRESETS``), the robot's Table 6
@@ -252,24 +264,31 @@ def active_terms(weights: dict[str, float], params: dict[str, dict] | None = Non
 
 
 def reward_table(cfg, robot_cfg, target_height: float, reach_radius: float
-                 ) -> tuple[dict[str, RewardTerm], bool, float]:
-    """The env's reward table (``cfg``: EnvConfig, ``robot_cfg``: RobotConfig), whether the
-    step's total is clipped at 0, and the termination penalty per fall (x dt)."""
+                 ) -> tuple[dict[str, RewardTerm], bool]:
+    """The env's reward table (``cfg``: EnvConfig, ``robot_cfg``: RobotConfig) and whether
+    the step's total is clipped at 0."""
     from legoh.config.env import REWARD_PRESETS
 
     weights = preset_weights(cfg.reward_preset, dict(cfg.rewards),
                              dict(robot_cfg.table6_weights))
     table = active_terms(weights, term_params(cfg, target_height, reach_radius))
-    _, clip_total, penalty = REWARD_PRESETS[cfg.reward_preset]
+    _, clip_total = REWARD_PRESETS[cfg.reward_preset]
     clip = clip_total if cfg.only_positive_rewards is None else bool(cfg.only_positive_rewards)
-    penalty = penalty if cfg.termination_penalty is None else float(cfg.termination_penalty)
-    return table, clip, penalty
+    return table, clip
 
 
-def compute_rewards(state: StepState, terms: dict[str, RewardTerm]
+def compute_rewards(state: StepState, terms: dict[str, RewardTerm], clip: bool = False
                     ) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
-    """Total reward (N,) = dt * sum_k w_k r_k, and each weighted, dt-scaled term (N,)."""
+    """Total reward (N,) = dt * sum_k w_k r_k, clipped at 0 when ``clip`` (the terms of
+    ``AFTER_CLIP`` added after the clip), and each weighted, dt-scaled term (N,)."""
     parts = {name: t.fn(state, **t.params) * (t.weight * state.dt)
              for name, t in terms.items()}
-    total = torch.stack(list(parts.values())).sum(0) if parts else torch.zeros_like(state.yaw)
-    return total, parts
+    def summed(names: list[str]) -> torch.Tensor:
+        return (torch.stack([parts[k] for k in names]).sum(0) if names
+                else torch.zeros_like(state.yaw))
+
+    total = summed([k for k in parts if k not in AFTER_CLIP])
+    if clip:
+        total = torch.clamp(total, min=0.0)
+    after = [k for k in parts if k in AFTER_CLIP]
+    return (total + summed(after) if after else total), parts

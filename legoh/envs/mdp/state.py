@@ -62,13 +62,13 @@ class StepState:
     feet_height: torch.Tensor  # (N, F) m: foot lift above its standing height
     swing_target: torch.Tensor  # (N, F) m: the lift the gait clock asks for now
     advance: torch.Tensor  # (N,) bool: whose observation history takes this state
+    # (N,) bool: the episode ended in a failure on this step; the step sets it from the
+    # termination table (mdp.terminations) before the rewards read it
+    failed: torch.Tensor
 
     @property
     def num_envs(self) -> int:
         return self.yaw.shape[0]
-
-
-STATE_FIELDS = tuple(f.name for f in fields(StepState))
 
 
 class Grid:
@@ -313,4 +313,5 @@ def compute_state(env, action: torch.Tensor | None = None) -> StepState:
         level=env.level, command=command, phase=phase, stance=stance,
         feet_height=feet[..., 2] - ground[:, 1:] - env.feet_rest_height,
         swing_target=target, advance=torch.ones(n, dtype=torch.bool, device=pos.device),
+        failed=torch.zeros(n, dtype=torch.bool, device=pos.device),
     )

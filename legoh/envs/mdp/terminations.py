@@ -1,12 +1,53 @@
-"""Termination terms: ``fn(env, state) -> (N,) bool``. ``TERMINATIONS`` maps each name to
-``(fn, time_out)``: a time-out truncates the episode, any other term terminates it. Each
-term's flag is also reported as ``("info", name)`` unless it is a time-out."""
+"""Termination terms: ``fn(env, state) -> (N,) bool``, one row of ``TERMINATIONS`` each.
+
+Every row is honoured by the step (:func:`check_terminations`); its ``outcome`` says how the
+episode ends when the term fires:
+
+* ``success`` and ``failure`` terminate it (no bootstrapping past it). A failure, unless a
+  success fired on the same step, is what the ``termination`` reward term pays and what the
+  randomisation gate counts as a fall.
+* ``time_out`` truncates it (the value past it is bootstrapped).
+
+A step whose simulation diverged (the env was reset in place) ends truncated and reports no
+outcome. Each term's flag, time-outs excepted, is reported as ``("info", name)``. To add a
+term, write the function here and give it a row in ``TERMINATIONS``.
+"""
 
 from __future__ import annotations
+
+from collections.abc import Callable
+from enum import StrEnum
+from typing import NamedTuple
 
 import torch
 
 from legoh.envs.mdp.state import StepState
+
+TerminationFn = Callable[..., torch.Tensor]  # fn(env, state) -> (N,) bool
+
+
+class Outcome(StrEnum):
+    """How an episode ends when a termination term fires."""
+
+    success = "success"  # terminated: the task is done
+    failure = "failure"  # terminated: the robot failed (the termination reward term pays)
+    time_out = "time_out"  # truncated
+
+
+class Termination(NamedTuple):
+    """One row of the termination table: the function and the outcome it stands for."""
+
+    fn: TerminationFn
+    outcome: Outcome
+
+
+class Ends(NamedTuple):
+    """What the termination table made of one step, each (N,) bool."""
+
+    terminated: torch.Tensor
+    truncated: torch.Tensor
+    failed: torch.Tensor  # a failure term fired and no success term did
+    flags: dict[str, torch.Tensor]  # each term that is not a time-out, by name
 
 
 def reached(env, s: StepState) -> torch.Tensor:
@@ -26,5 +67,26 @@ def time_out(env, s: StepState) -> torch.Tensor:
     return env.steps >= env.max_steps
 
 
-TERMINATIONS = {"reached": (reached, False), "fell": (fell, False),
-                "timeout": (time_out, True)}
+TERMINATIONS: dict[str, Termination] = {
+    "reached": Termination(reached, Outcome.success),
+    "fell": Termination(fell, Outcome.failure),
+    "timeout": Termination(time_out, Outcome.time_out),
+}
+
+
+def check_terminations(table: dict[str, Termination], env, s: StepState,
+                       diverged: torch.Tensor) -> Ends:
+    """Every term of ``table`` on the step's state ``s``; ``diverged`` (N,) bool: envs
+    reset in place by this step's divergence check (truncated, no outcome)."""
+    flags = {name: term.fn(env, s) & ~diverged for name, term in table.items()}
+
+    def any_of(outcome: Outcome) -> torch.Tensor:
+        fired = [flags[name] for name, term in table.items() if term.outcome == outcome]
+        return torch.stack(fired).any(0) if fired else torch.zeros_like(diverged)
+
+    success, failure = any_of(Outcome.success), any_of(Outcome.failure)
+    terminated = success | failure
+    truncated = (any_of(Outcome.time_out) | diverged) & ~terminated
+    reported = {name: flags[name] for name, term in table.items()
+                if term.outcome != Outcome.time_out}
+    return Ends(terminated, truncated, failure & ~success, reported)

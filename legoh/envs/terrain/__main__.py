@@ -14,18 +14,12 @@ from legoh.envs.terrain.export import primitive_png, tile_png, tile_scene
 from legoh.envs.terrain.primitives import PRIMITIVES
 from legoh.envs.terrain.terrain_map import build_terrain_map
 
-CONF_DIR = Path(__file__).resolve().parents[3] / "conf"
 
-
-def load_trail(name: str, overrides: list[str], conf_dir: Path = CONF_DIR):
+def load_trail(name: str, overrides: list[str]):
     """The ``trail`` group of the run config composed with ``trail=name`` (DictConfig)."""
-    from hydra import compose, initialize_config_dir
+    from legoh.config.compose import compose_config
 
-    from legoh.config import register_configs
-
-    register_configs()
-    with initialize_config_dir(config_dir=str(conf_dir), version_base=None):
-        return compose("config", overrides=[f"trail={name}", *overrides]).trail
+    return compose_config(f"trail={name}", *overrides).trail
 
 
 def main(argv: list[str] | None = None) -> list[Path]:
@@ -58,7 +52,7 @@ def main(argv: list[str] | None = None) -> list[Path]:
     Path(f"{stem}.{args.format}").write_bytes(mesh if isinstance(mesh, bytes) else mesh.encode())
     png = tile_png(tm, tile, Path(f"{stem}.png"))
     print(f"wrote {stem}.{args.format} and {png}: {len(tile.waypoints)} waypoints, "
-          f"path {tile.length:.1f} m, friction {tile.friction:.2f}")
+          f"path {tile.length:.1f} m")
     return [Path(f"{stem}.{args.format}"), png]
 
 

@@ -48,7 +48,6 @@ class Tile:
     waypoints: np.ndarray  # (W, 3) expert goals in order; the last one is the terminus
     terminus: np.ndarray  # (3,)
     middle: np.ndarray  # (3,) the waypoint nearest half-way along the trail
-    friction: float  # surface friction coefficient of this tile
     length: float  # m, start -> waypoints -> terminus
     path: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # (P, 3) dense path
     plan: list = field(default_factory=list)  # [(primitive, segment length m), ...]
@@ -191,11 +190,10 @@ def _make_tile(lay: TileLayout, cfg, category: str, level: int, variant: int,
     cyl[:, 2] += _on_ground(lay.heights, res, cyl[:, :2]) - TRUNK_SINK / 2
     cyl[:, 4] += TRUNK_SINK / 2
     cyl[:, :2] += corner
-    lo, hi = cfg.friction_range
+    rng.random()  # the draw of a per-tile friction no scene ever used: kept, maps stay as they were
     tile = Tile(category, level, variant, corner.copy(),
                 np.array([cfg.tile_length, cfg.tile_width]), start, 0.0, waypoints,
-                waypoints[-1].copy(), waypoints[mid].copy(), float(rng.uniform(lo, hi)), length,
-                world(path), lay.plan)
+                waypoints[-1].copy(), waypoints[mid].copy(), length, world(path), lay.plan)
     return tile, boxes, cyl
 
 

@@ -24,6 +24,7 @@ class CategorySpec:
     doc: str = ""
 
 
+# RandomMix's primitives, drawn uniformly per segment (``trail.primitives`` replaces a mix)
 OPEN_MIX = ("slope_up", "slope_down", "rough_slope", "stairs_up", "stairs_down", "rough",
             "rocks", "mounds", "platforms")
 
