@@ -43,6 +43,7 @@ class HikingGymEnv(gym.Env):
         self.obs_keys = list(obs_spec.keys())
         self.observation_space = gym.spaces.Dict({k: _box(obs_spec[k]) for k in self.obs_keys})
         self.action_space = _box(env.action_spec)
+        self._fresh = env.curriculum_state()
 
     @classmethod
     def from_config(cls, cfg, evaluation: bool = False, **env_overrides) -> HikingGymEnv:
@@ -63,10 +64,13 @@ class HikingGymEnv(gym.Env):
 
     def reset(self, *, seed: int | None = None, options: dict | None = None
               ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
-        """New episode; a ``seed`` reseeds the env's random draws (spawn, tile, physics)."""
+        """New episode; a ``seed`` reseeds the env's random draws (spawn, tile, physics) and
+        sets its schedule (level, step counter, randomisation gate) back to a fresh env's,
+        so a seeded episode replays exactly."""
         super().reset(seed=seed)
         if seed is not None:
             self.env.set_seed(seed)
+            self.env.load_curriculum_state(self._fresh)
         td = self.env.reset()
         return self._obs(td), self._info(td)
 
