@@ -242,6 +242,22 @@ def write_summary(out: Path, args) -> None:
     plot(out)
 
 
+def read_train(out: Path) -> dict[str, np.ndarray]:
+    """train.csv as float columns (empty cells NaN)."""
+    with open(out / "train.csv") as f:
+        rows = list(csv.DictReader(f))
+    return {k: np.array([float(r[k]) if r[k] not in ("", None) else np.nan for r in rows])
+            for k in rows[0]}
+
+
+def smooth(y: np.ndarray, k: int = 25) -> np.ndarray:
+    """Running mean over ``k`` iterations, NaNs skipped."""
+    ok = np.isfinite(y)
+    num = np.convolve(np.where(ok, y, 0.0), np.ones(k), "same")
+    den = np.convolve(ok.astype(float), np.ones(k), "same")
+    return np.where(den > 0, num / np.maximum(den, 1e-9), np.nan)
+
+
 def plot(out: Path) -> None:
     """Training levels and falls per category, randomisation, walk test, benchmark SR."""
     import matplotlib
@@ -254,12 +270,15 @@ def plot(out: Path) -> None:
     e = read_evals(out)
     x = e["frames"] / 1e6
     fig, axes = plt.subplots(1, 4, figsize=(20, 4))
+    t = read_train(out)  # per iteration, smoothed over 25 iterations
+    tx = t["iteration"] * (e["frames"][-1] / max(e["iteration"][-1], 1)) / 1e6
     for i, c in enumerate(CATEGORIES):
-        if f"level/{c}" in e:
-            axes[0].plot(x, e[f"level/{c}"], color=f"C{i}", label=c)
-            axes[1].plot(x, e[f"fell/{c}"], color=f"C{i}")
-    axes[0].plot(x, e["level_mean"], "k--", label="all")
-    axes[1].plot(x, e["randomization"], "k:", label="randomisation strength")
+        if f"level/{c}" in t:
+            axes[0].plot(tx, smooth(t[f"level/{c}"]), color=f"C{i}", label=c)
+            axes[1].plot(tx, smooth(t[f"fell/{c}"]), color=f"C{i}")
+    axes[0].plot(tx, smooth(t["level_mean"]), "k--", label="all")
+    if "randomization" in t:
+        axes[1].plot(tx, t["randomization"], "k:", label="randomisation strength")
     axes[2].plot(x, 100 * e["c_walked_share"], "k", label="% walking >= 10 m")
     axes[2].plot(x, 10 * e["c_distance_m"], "k--", label="10 x m toward the terminus")
     axes[2].axhline(80, color="k", lw=0.5)
@@ -271,12 +290,12 @@ def plot(out: Path) -> None:
             axes[3].plot(bx, [r.get(f"sr_{c}", np.nan) for r in bench], color=f"C{i}",
                          label=f"{c} 0-4")
         axes[3].axhline(D_SR, color="k", lw=0.5)
-    titles = ["training: mean terrain level per category", "training: falls / ended "
-              "episodes per category (dotted: randomisation strength)",
+    titles = ["training: mean terrain level per category (25-iteration mean)",
+              "training: falls / ended episodes per category (dotted: randomisation)",
               "(c) walk test, RandomMix L0 + randomisation", "benchmark SR (%), "
               "randomisation on"]
-    for ax, t in zip(axes, titles, strict=True):
-        ax.set_title(t, fontsize=9)
+    for ax, title in zip(axes, titles, strict=True):
+        ax.set_title(title, fontsize=9)
         ax.set_xlabel("frames (M)")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
