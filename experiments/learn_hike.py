@@ -60,6 +60,8 @@ D_SR, E_SR_MIX, E_SR_CAT = 50.0, 70.0, 50.0
 
 
 def run_dir(args) -> Path:
+    if args.out:
+        return Path(args.out)
     return OUT / f"{args.robot}-s{args.seed}{'-' + args.tag if args.tag else ''}"
 
 
@@ -72,7 +74,7 @@ def train(args) -> None:
     if init != "none":
         extra.append(f"init={init}")
     cfg = compose_run(args.robot, args.seed, "walk", "hike", [*extra, *args.overrides])
-    walk_env = eval_env(cfg, "randommix", True)
+    walk_env = eval_env(cfg, "randommix", True, args.walk_robots)
     frames_per_it = cfg.algo.num_envs * cfg.algo.steps_per_env
     resume = out / "oracle.pt"
     rows = read_rows(out / "evals.csv")
@@ -252,6 +254,7 @@ def read_train(out: Path) -> dict[str, np.ndarray]:
 
 def smooth(y: np.ndarray, k: int = 25) -> np.ndarray:
     """Running mean over ``k`` iterations, NaNs skipped."""
+    k = max(1, min(k, len(y)))
     ok = np.isfinite(y)
     num = np.convolve(np.where(ok, y, 0.0), np.ones(k), "same")
     den = np.convolve(ok.astype(float), np.ones(k), "same")
@@ -315,6 +318,9 @@ def main() -> None:
     parser.add_argument("--init", default="walker",
                         help="walker (the committed learn_walk walker) | none | PATH")
     parser.add_argument("--tag", default="", help="suffix of the run folder (a variant)")
+    parser.add_argument("--out", default="", help="run folder (default: results/learn_hike/"
+                        "<robot>-s<seed>[-tag])")
+    parser.add_argument("--walk-robots", type=int, default=16, help="robots of the walk test")
     parser.add_argument("--plot", action="store_true", help="redraw curve and summary")
     parser.add_argument("--evaluate", action="store_true",
                         help="benchmark the snapshots not yet scored (d, e)")

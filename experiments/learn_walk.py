@@ -48,8 +48,9 @@ def compose_run(robot: str, seed: int, preset: str, trail: str, extra: list[str]
                                               f"env.reward_preset={preset}", *extra])
 
 
-def eval_env(cfg, trail: str, randomize: bool):
-    """16 robots, 30 s episodes, curriculum off; randomisation from the first step or off."""
+def eval_env(cfg, trail: str, randomize: bool, robots: int = ROBOTS):
+    """``robots`` robots (16), 30 s episodes, curriculum off; randomisation from the first
+    step or off."""
     register_configs()
     with initialize_config_dir(str(ROOT / "conf"), version_base="1.3"):
         base = compose("config", overrides=[f"trail={trail}"])
@@ -59,7 +60,7 @@ def eval_env(cfg, trail: str, randomize: bool):
     rand.schedule = Schedule.steps  # full strength from the first step
     cur = OmegaConf.to_object(run.env.curriculum)
     cur.enabled = False
-    return make_env(run, num_envs=ROBOTS, evaluation=True, episode_length_s=SECONDS,
+    return make_env(run, num_envs=robots, evaluation=True, episode_length_s=SECONDS,
                     randomization=rand, curriculum=cur)
 
 

@@ -1,0 +1,51 @@
+"""A hiking campaign resumes from what a session commits: the run folder's oracle.pt,
+train.csv, clock.csv and evals.csv, without the git-ignored snapshots."""
+
+import csv
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+TINY = ["--envs", "8", "--walk-robots", "2", "--eval-every", "100", "--frames", "10000000",
+        "trail.variants=1", "trail.levels=2", "algo.steps_per_env=8", "algo.epochs=1",
+        "collector.overlap=false"]
+
+
+def _run(out: Path, minutes: float) -> str:
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "MUJOCO_GL": "egl"}
+    done = subprocess.run([sys.executable, str(ROOT / "experiments/learn_hike.py"), "--out",
+                           str(out), "--minutes", str(minutes), *TINY], env=env, cwd=ROOT,
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    return done.stdout
+
+
+def _last(path: Path) -> dict:
+    with open(path) as f:
+        return list(csv.DictReader(f))[-1]
+
+
+def test_a_campaign_resumes_from_its_committed_files(tmp_path) -> None:
+    first = tmp_path / "session1" / "h1-s0"
+    _run(first, 0.15)
+    clone = tmp_path / "session2" / "h1-s0"  # a fresh clone holds the committed files only
+    clone.mkdir(parents=True)
+    for name in ("oracle.pt", "train.csv", "clock.csv", "evals.csv"):
+        shutil.copy(first / name, clone / name)
+    it0, min0 = int(_last(clone / "clock.csv")["iteration"]), float(
+        _last(clone / "clock.csv")["minutes"])
+    out = _run(clone, 0.3)
+    assert "resumed from" in out
+    rows = list(csv.DictReader(open(clone / "train.csv")))
+    iters = [int(float(r["iteration"])) for r in rows]
+    assert iters == list(range(1, len(iters) + 1)) and iters[-1] > it0  # one history
+    clock = _last(clone / "clock.csv")
+    assert int(clock["iteration"]) == iters[-1] and float(clock["minutes"]) > min0
+    evals = list(csv.DictReader(open(clone / "evals.csv")))
+    minutes = [float(r["minutes"]) for r in evals]  # at the start, each stop
+    assert len(evals) == 3 and minutes == sorted(minutes) and minutes[2] > min0
+    # the warm start was the committed walker (init), the second session did not repeat it
+    assert "init=" not in out.split("resumed from")[1]
