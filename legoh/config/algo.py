@@ -1,7 +1,7 @@
 """Algorithm config schemas (``conf/algo/*.yaml``)."""
 
 from dataclasses import dataclass, field
-from enum import Enum
+from enum import Enum, StrEnum
 
 
 class Precision(Enum):
@@ -10,6 +10,14 @@ class Precision(Enum):
     float32 = "float32"
     bfloat16 = "bfloat16"  # autocast: matrix products in bfloat16 (fast with AMX / tensor cores)
     auto = "auto"  # bfloat16 where the learner's device runs it fast, else float32
+
+
+class NavReward(StrEnum):
+    """The unified stage's navigation reward (``algo.nav_reward``; docs/unified.md)."""
+
+    progress = "progress"  # m/s gained along the remaining expert path + the reach bonus
+    line_progress = "line_progress"  # m/s gained in a straight line + the reach bonus
+    paper = "paper"  # Table 6's point navigation: 1 inside the reach radius, else -0.75 d
 
 
 @dataclass
@@ -94,6 +102,14 @@ class UnifiedConfig(OracleConfig):
     distill_epochs: int = 2  # passes of the imitation losses over each batch (in minibatches)
     oracle_checkpoint: str | None = None  # None: train one first (oracle_frames), or reuse it
     oracle_frames: int = 200_000  # budget of the oracle trained when none is given
-    pn_distance: float = 1.0  # weight of Table 6's point-navigation term (this stage only)
+    # the navigation reward of this stage. paper: -0.75 d a step (-0.33 at the spawn vs
+    # +0.04 for the walker's whole reward) made an early fall the best return (measured,
+    # docs/unified.md); progress pays for the path covered, so a fall forfeits reward
+    nav_reward: NavReward = NavReward.progress
+    pn_progress: float = 1.0  # weight per m/s of progress (0.8 m/s: +0.016 a step)
+    # weight of the reach bonus (1 x weight x dt, once: the reach ends the episode): 250
+    # pays 5, above the ~4 of walking reward (0.04 a step, gamma 0.99) a reach forgoes
+    pn_reach: float = 250.0
+    pn_distance: float = 1.0  # weight of Table 6's point-navigation term (nav_reward=paper)
     depth_far: float | None = None  # m: clip depth nearer than the camera's far plane (EP-H: 2)
     weights: LossWeights = field(default_factory=LossWeights)

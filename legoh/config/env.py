@@ -8,7 +8,9 @@ def table6_weights() -> dict[str, float]:
     """Reward weights of appendix Table 6, the ``table6`` preset (the robot-specific column
     comes from robot.table6_weights).
 
-    ``pn_distance`` (point-navigation distance) is used by the unified stage only: 0 here.
+    ``pn_distance`` (point-navigation distance) is used by the unified stage only: 0 here,
+    as are that stage's progress form (``pn_progress``, ``pn_line_progress``, ``pn_reach``;
+    ``algo.nav_reward``, docs/unified.md).
     """
     return {
         "tracking_goal_vel": 10.0,
@@ -28,6 +30,9 @@ def table6_weights() -> dict[str, float]:
         "feet_air_time": 1.0,
         "base_height": -100.0,
         "pn_distance": 0.0,
+        "pn_progress": 0.0,
+        "pn_line_progress": 0.0,
+        "pn_reach": 0.0,
         "dof_pos_limits": 0.0,
         # legged_gym's termination term (Cassie: -200), per fall x dt, paid after the clip:
         # without the clip and this term our first 2M-frame study learned to dive at the goal
@@ -55,7 +60,10 @@ def walk_weights() -> dict[str, float]:
         "feet_contact_phase": 0.18,
         "feet_swing_height": -20.0,
         "feet_phase": 1.0,
-        "pn_distance": 0.0,
+        "pn_distance": 0.0,  # the unified stage's navigation terms (algo.nav_reward)
+        "pn_progress": 0.0,
+        "pn_line_progress": 0.0,
+        "pn_reach": 0.0,
         # unitree_rl_gym has no termination term: a fall forfeits the rest of the episode's
         # reward (-4 per fall kept our first walk attempt standing)
         "termination": 0.0,

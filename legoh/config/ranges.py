@@ -79,7 +79,7 @@ RANGES: list[tuple[str, Range]] = [
     ("algo.weights.c_*", FRACTION), ("algo.weights.*", NON_NEGATIVE),
     ("algo.desired_kl", NON_NEGATIVE), ("algo.entropy_coef", NON_NEGATIVE),
     ("algo.value_coef", NON_NEGATIVE), ("algo.hlm_margin", NON_NEGATIVE),
-    ("algo.pn_distance", ANY),  # a reward weight: signed like env.rewards
+    ("algo.pn_*", ANY),  # reward weights: signed like env.rewards
     ("algo.lr", POSITIVE), ("algo.adaptation_lr", POSITIVE), ("algo.vae_lr", POSITIVE),
     ("algo.clip_epsilon", POSITIVE), ("algo.init_noise_std", POSITIVE),
     ("algo.tanh_bound", POSITIVE), ("algo.max_grad_norm", POSITIVE),

@@ -23,7 +23,7 @@ from torchrl.envs import Compose, EnvBase, InitTracker, TensorDictPrimer, Transf
 
 from legoh import keys
 from legoh.checkpoint import CheckpointError, load_checkpoint
-from legoh.config.algo import OracleConfig
+from legoh.config.algo import NavReward, OracleConfig
 from legoh.envs.hiking_env import make_env
 from legoh.modules.actor_critic import LOC, OracleInputDims
 from legoh.modules.students import Student, StudentDims, make_student, unroll
@@ -105,15 +105,29 @@ def load_oracle(cfg: DictConfig, path: Path, env: EnvBase):
 
 
 # ----------------------------------------------------------------------------- env
+def nav_reward_weights(algo) -> dict[str, float]:
+    """The weights of this stage's navigation terms (``algo.nav_reward``), over
+    ``env.rewards``: the progress form (progress toward the terminus + the reach bonus)
+    or the paper's point-navigation distance. The other forms' terms get 0."""
+    form = NavReward(str(getattr(algo.nav_reward, "value", algo.nav_reward)))
+    weights = dict.fromkeys(("pn_distance", "pn_progress", "pn_line_progress", "pn_reach"), 0.0)
+    if form == NavReward.paper:
+        weights["pn_distance"] = float(algo.pn_distance)
+    else:
+        term = "pn_progress" if form == NavReward.progress else "pn_line_progress"
+        weights[term] = float(algo.pn_progress)
+        weights["pn_reach"] = float(algo.pn_reach)
+    return weights
+
+
 def student_env_overrides(cfg: DictConfig) -> dict:
-    """Env settings of stage 2: depth on (unless the student is blind), the unified
-    stage's point-navigation reward (Table 6, *), the student's depth range."""
+    """Env settings of stage 2: depth on (unless the student is blind), the stage's
+    navigation reward (:func:`nav_reward_weights`), the student's depth range."""
     depth = OmegaConf.to_object(cfg.env.depth)  # a DepthConfig
     depth.enabled = cfg.algo.student != "rma_b"
     if cfg.algo.depth_far is not None:
         depth.far = float(cfg.algo.depth_far)
-    rewards = dict(cfg.env.rewards)
-    rewards["pn_distance"] = float(cfg.algo.pn_distance)
+    rewards = {**dict(cfg.env.rewards), **nav_reward_weights(cfg.algo)}
     return {"depth": depth, "rewards": rewards}
 
 

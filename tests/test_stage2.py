@@ -1,0 +1,127 @@
+"""Stage 2's learning signal, worked on constructed cases: the navigation reward ranks a
+walk above a fall, progress is counted through waypoints without jumps."""
+
+import numpy as np
+import pytest
+import torch
+
+from legoh.config.algo import NavReward, UnifiedConfig
+from legoh.envs.mdp.rewards import active_terms, compute_rewards
+from legoh.envs.mdp.state import Goals, NavProgress, TrailTable
+from legoh.train.unified import nav_reward_weights
+from tests.test_rewards import DT, PARAMS, neutral
+
+WALKER = 0.041  # reward a step of the flat walker's own (walk preset) terms, measured
+SPEED = 0.8  # m/s, env.goal_speed
+TRAIL = 22.0  # m: a trail's length, the terminus straight ahead of the spawn
+
+
+def episode_returns(form: NavReward, steps: int, fall_at: int | None = None,
+                    stop_at: float | None = None, terminus: float = TRAIL) -> np.ndarray:
+    """Discounted returns (gamma of stage 2) of two robots walking at SPEED toward a
+    terminus ``terminus`` m ahead: env 0 walks on (or stops ``stop_at`` m before it), env 1
+    the same but, if ``fall_at``, pitches 1 m forward over 10 steps and ends there, a
+    failure. Both earn WALKER a step while alive; reaching the terminus ends an episode."""
+    algo = UnifiedConfig(nav_reward=form)
+    table = active_terms({k: w for k, w in nav_reward_weights(algo).items()}, PARAMS)
+    x = torch.zeros(2, dtype=torch.float64)
+    alive = torch.ones(2, dtype=torch.bool)
+    total = np.zeros(2)
+    for t in range(steps):
+        step = torch.full((2,), SPEED * DT, dtype=torch.float64)
+        if stop_at is not None:
+            step = torch.clamp(terminus - stop_at - x, min=0.0).clamp(max=SPEED * DT)
+        failed = torch.zeros(2, dtype=torch.bool)
+        if fall_at is not None and t >= fall_at - 10:
+            step[1] = 0.1  # the body pitches forward: 1 m in 10 steps
+            failed[1] = t == fall_at - 1
+        x = x + step
+        state = neutral(base_xy=torch.stack([x, torch.zeros(2, dtype=x.dtype)], 1),
+                        terminus_xy=torch.tensor([[terminus, 0.0]] * 2, dtype=x.dtype),
+                        path_progress=step / DT, line_progress=step / DT, failed=failed)
+        reward, _ = compute_rewards(state, table)
+        reward = reward + WALKER
+        total += (algo.gamma**t * reward * alive).numpy()
+        reached = (terminus - x) < PARAMS["pn_reach"]["radius"]
+        alive = alive & ~failed & ~reached
+    return total
+
+
+@pytest.mark.parametrize("form", [NavReward.progress, NavReward.line_progress])
+def test_falling_returns_less_than_walking(form: NavReward) -> None:
+    """A 20 s walk against a dive after 1 s: 5.7 against 2.8. The paper's term gives the
+    fall the higher return (-11.1 against -26.5)."""
+    walk, fall = episode_returns(form, steps=1000, fall_at=50)
+    assert walk > fall + 1.0
+
+
+def test_the_papers_form_pays_for_falling() -> None:
+    """Why the form changed: under -0.75 d a step the dive out-earns the walk."""
+    walk, fall = episode_returns(NavReward.paper, steps=1000, fall_at=50)
+    assert fall > walk
+
+
+@pytest.mark.parametrize("form", [NavReward.progress, NavReward.line_progress])
+def test_reaching_returns_more_than_loitering(form: NavReward) -> None:
+    """Reaching ends the episode (and its walking reward): the bonus outweighs what a robot
+    standing 0.6 m short of a terminus 2 m ahead would still earn."""
+    reach, _ = episode_returns(form, steps=1000, terminus=2.0)
+    loiter, _ = episode_returns(form, steps=1000, stop_at=0.6, terminus=2.0)
+    assert reach > loiter
+
+
+def test_paper_form_weights_only_the_distance_term() -> None:
+    w = nav_reward_weights(UnifiedConfig(nav_reward=NavReward.paper, pn_distance=1.0))
+    assert w == {"pn_distance": 1.0, "pn_progress": 0.0, "pn_line_progress": 0.0,
+                 "pn_reach": 0.0}
+
+
+# --------------------------------------------------------------------------- progress
+def l_trail() -> TrailTable:
+    """One tile: start (0, 0), waypoints (5, 0), (5, 5), terminus (10, 5); 15 m of path."""
+    wp = np.array([[[5.0, 0.0], [5.0, 5.0], [10.0, 5.0]]])
+    one = np.zeros(1)
+    return TrailTable(waypoints=wp, count=np.array([3]), cum_length=np.array([[5.0, 10.0, 15.0]]),
+                      length=np.array([15.0]), start=np.zeros((1, 3)), start_yaw=one,
+                      terminus=np.array([[10.0, 5.0]]), middle=np.array([[5.0, 5.0]]),
+                      category=np.zeros(1, int), level=np.zeros(1, int),
+                      variant=np.zeros(1, int)).to(torch.device("cpu"), torch.float64)
+
+
+def test_progress_along_the_path_and_in_a_line() -> None:
+    trails = l_trail()
+    goals = Goals(1, trails, radius=0.6, device=torch.device("cpu"))
+    nav = NavProgress(1, torch.device("cpu"), torch.float64)
+    xy = torch.tensor([[1.0, 0.0]], dtype=torch.float64)
+    assert goals.remaining(xy).item() == pytest.approx(14.0)
+    nav.start(xy)
+    path, line = nav.update(goals, trails.terminus[[0]], xy + torch.tensor([[0.1, 0.0]]), DT)
+    assert path.item() == pytest.approx(0.1 / DT)
+    expected = (np.hypot(9.0, 5.0) - np.hypot(8.9, 5.0)) / DT
+    assert line.item() == pytest.approx(expected)
+
+
+def test_passing_a_waypoint_is_no_jump_in_progress() -> None:
+    """Both ends of a step are measured through the waypoint current after it: 0.1 m along
+    x at the corner gains 0.35 m/s toward (5, 5), not the 19.5 m/s of the index change."""
+    trails = l_trail()
+    goals = Goals(1, trails, radius=0.6, device=torch.device("cpu"))
+    nav = NavProgress(1, torch.device("cpu"), torch.float64)
+    nav.start(torch.tensor([[4.6, 0.0]], dtype=torch.float64))
+    now = torch.tensor([[4.7, 0.0]], dtype=torch.float64)
+    goals.advance(now)
+    assert goals.index.item() == 1
+    path, _ = nav.update(goals, trails.terminus[[0]], now, DT)
+    expected = (np.hypot(0.4, 5.0) - np.hypot(0.3, 5.0)) / DT
+    assert path.item() == pytest.approx(expected)
+
+
+def test_progress_is_zero_on_the_step_after_a_reset() -> None:
+    nav = NavProgress(2, torch.device("cpu"), torch.float64)
+    goals = Goals(2, l_trail(), radius=0.6, device=torch.device("cpu"))
+    xy = torch.zeros(2, 2, dtype=torch.float64)
+    nav.start(xy)
+    nav.reset(torch.tensor([1]))  # env 1 diverged and was reset within the step
+    path, line = nav.update(goals, torch.tensor([[10.0, 5.0]] * 2, dtype=torch.float64),
+                            xy + 0.1, DT)
+    assert path[0] != 0 and path[1] == 0 and line[1] == 0
