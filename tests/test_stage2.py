@@ -125,3 +125,24 @@ def test_progress_is_zero_on_the_step_after_a_reset() -> None:
     path, line = nav.update(goals, torch.tensor([[10.0, 5.0]] * 2, dtype=torch.float64),
                             xy + 0.1, DT)
     assert path[0] != 0 and path[1] == 0 and line[1] == 0
+
+
+# --------------------------------------------------------------------------- command
+def test_stage_two_commands_the_evaluation_speed() -> None:
+    """The oracle reads the forward-speed command, the student cannot: stage 2 commands
+    env.goal_speed in every episode. Failed before: speeds drawn from U(0.3, 1.0), 10 % 0."""
+    from legoh.envs.hiking_env import make_env
+    from legoh.train.unified import student_env_overrides
+    from tests.conftest import compose_config
+
+    cfg = compose_config("algo=unified", "trail=flat", "trail.levels=1", "trail.variants=1")
+    overrides = student_env_overrides(cfg)
+    overrides["depth"].enabled = False  # the command does not need frames
+    env = make_env(cfg, num_envs=32, **overrides)
+    try:
+        for _ in range(2):
+            td = env.reset()
+            assert torch.all(env.command.speed == cfg.env.goal_speed)
+            assert torch.all(td["obs", "command"][:, 0] == cfg.env.goal_speed)
+    finally:
+        env.close()

@@ -10,6 +10,7 @@ the imitation losses (action, latent, goals, HLM) update the whole student throu
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import hashlib
 import time
@@ -24,6 +25,7 @@ from torchrl.envs import Compose, EnvBase, InitTracker, TensorDictPrimer, Transf
 from legoh import keys
 from legoh.checkpoint import CheckpointError, load_checkpoint
 from legoh.config.algo import NavReward, OracleConfig
+from legoh.config.env import CommandConfig
 from legoh.envs.hiking_env import make_env
 from legoh.modules.actor_critic import LOC, OracleInputDims
 from legoh.modules.students import Student, StudentDims, make_student, unroll
@@ -120,15 +122,25 @@ def nav_reward_weights(algo) -> dict[str, float]:
     return weights
 
 
+def student_command(cfg: DictConfig) -> CommandConfig:
+    """The forward-speed command of stage 2: the evaluation's, ``env.goal_speed`` for every
+    episode, never zero. The oracle reads the command and the student cannot see it, so a
+    drawn one would make the labels depend on an input the student has no way to infer."""
+    command = OmegaConf.to_object(cfg.env.command)  # a CommandConfig
+    speed = float(cfg.env.goal_speed)
+    return dataclasses.replace(command, speed=[speed, speed], zero_prob=0.0)
+
+
 def student_env_overrides(cfg: DictConfig) -> dict:
     """Env settings of stage 2: depth on (unless the student is blind), the stage's
-    navigation reward (:func:`nav_reward_weights`), the student's depth range."""
+    navigation reward (:func:`nav_reward_weights`), the student's depth range, the
+    evaluation's speed command (:func:`student_command`)."""
     depth = OmegaConf.to_object(cfg.env.depth)  # a DepthConfig
     depth.enabled = cfg.algo.student != "rma_b"
     if cfg.algo.depth_far is not None:
         depth.far = float(cfg.algo.depth_far)
     rewards = {**dict(cfg.env.rewards), **nav_reward_weights(cfg.algo)}
-    return {"depth": depth, "rewards": rewards}
+    return {"depth": depth, "rewards": rewards, "command": student_command(cfg)}
 
 
 def wrap_student_env(env: EnvBase, state_spec) -> TransformedEnv:
