@@ -188,3 +188,23 @@ def test_the_stage_two_critic_follows_returns_far_below_its_values() -> None:
     # the oracle keeps rsl_rl's clipping: stalled at 0.35 (0.2 + Adam's momentum), 20 epochs
     # or 40
     assert critic_shift(OracleConfig(**long)) < 0.5
+
+
+# --------------------------------------------------------------------------- exploration
+def test_every_student_explores_with_the_same_fixed_std() -> None:
+    """Failed before: LEGO-H sampled with a trained std starting at 0.5, the distill-only
+    baselines with 0.1."""
+    from legoh.train.unified import build_student, make_student_env
+    from tests.conftest import compose_config
+
+    scales = {}
+    for algo in ("unified", "ep_h", "rma_b"):
+        cfg = compose_config(f"algo={algo}", "trail=flat", "trail.levels=1", "trail.variants=1")
+        probe = make_student_env(cfg, 1, ((1,), 1))
+        student = build_student(cfg, probe)
+        probe.close()
+        std = student.locomotion.module[0].module.std
+        assert not any(p.requires_grad for p in std.parameters()), algo
+        scales[algo] = std(torch.zeros(1, *std.scale_shape))[1]
+        torch.testing.assert_close(scales[algo], torch.full_like(scales[algo],
+                                                                 cfg.algo.init_noise_std))

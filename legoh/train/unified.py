@@ -174,9 +174,10 @@ def build_student(cfg: DictConfig, env: EnvBase) -> Student:
     algo = cfg.algo
     far = algo.depth_far if algo.depth_far is not None else cfg.env.depth.far
     dims = StudentDims.from_spec(env.observation_spec, depth_far=float(far))
-    init_std = algo.init_noise_std if algo.ppo else 0.1  # distill-only students: little noise
+    # every student acts with the same fixed noise (docs/unified.md, "The same exploration")
     return make_student(algo.student, dims, env.action_spec.shape[-1], algo.tanh_bound,
-                        preset=algo.net, core=algo.core, init_std=init_std)
+                        preset=algo.net, core=algo.core, init_std=algo.init_noise_std,
+                        learn_std=False)
 
 
 def load_student(cfg: DictConfig, path: str | Path, student: Student) -> dict:
