@@ -208,3 +208,40 @@ def test_every_student_explores_with_the_same_fixed_std() -> None:
         scales[algo] = std(torch.zeros(1, *std.scale_shape))[1]
         torch.testing.assert_close(scales[algo], torch.full_like(scales[algo],
                                                                  cfg.algo.init_noise_std))
+
+
+# --------------------------------------------------------------------------- waypoints
+@pytest.mark.parametrize("rule,passed", [("radius", [0, 0, 1]), ("past", [1, 0, 1])])
+def test_a_waypoint_passed_beside_counts_under_the_past_rule(rule: str, passed: list) -> None:
+    """Waypoint (5, 0), reached along +x. Robot 0 walked by it 1 m to the side, robot 1
+    is 1 m short and to the side, robot 2 within the radius. Under ``radius`` robot 0 is
+    labelled back toward a waypoint behind it (the circling the rule teaches)."""
+    goals = Goals(3, l_trail(), radius=0.6, device=torch.device("cpu"), rule=rule)
+    goals.advance(torch.tensor([[5.1, 1.0], [4.0, 1.0], [4.7, 0.2]], dtype=torch.float64))
+    assert goals.index.tolist() == passed
+
+
+def test_the_past_rule_measures_from_the_previous_waypoint() -> None:
+    """At waypoint 1 (5, 5), reached along +y from (5, 0): past means y > 5."""
+    goals = Goals(2, l_trail(), radius=0.6, device=torch.device("cpu"), rule="past")
+    goals.index[:] = 1
+    goals.advance(torch.tensor([[7.0, 5.1], [7.0, 4.9]], dtype=torch.float64))
+    assert goals.index.tolist() == [2, 1]
+
+
+def test_stage_two_trains_with_the_past_rule_and_evaluates_with_radius() -> None:
+    """The oracle's env keeps radius (its training campaign uses it); stage 2's training
+    env passes waypoints once past them; its evaluation counts TR and TC as the oracle's."""
+    from legoh.config.env import WaypointPass
+    from legoh.train.unified import student_env_overrides
+    from tests.conftest import compose_config
+
+    assert compose_config("algo=oracle").env.waypoint_pass == WaypointPass.radius
+    cfg = compose_config("algo=unified")
+    assert student_env_overrides(cfg)["waypoint_pass"] == WaypointPass.past
+    assert "waypoint_pass" not in student_env_overrides(cfg, evaluation=True)
+
+
+def test_an_unknown_waypoint_rule_is_refused() -> None:
+    with pytest.raises(ValueError, match="env.waypoint_pass"):
+        Goals(1, l_trail(), radius=0.6, device=torch.device("cpu"), rule="near")

@@ -113,6 +113,15 @@ class DepthConfig:
     far: float = 3.0  # m: range clip; frames are depth / far - 0.5
 
 
+class WaypointPass(StrEnum):
+    """When an expert waypoint counts as passed (``env.waypoint_pass``)."""
+
+    radius = "radius"  # within env.waypoint_radius of it (the oracle's, Extreme Parkour's)
+    # also once past it along the path: beyond the line through it square to the segment
+    # that leads to it. A robot passing beside one is not labelled back toward it
+    past = "past"
+
+
 class Schedule(StrEnum):
     """When randomisation comes in (``env.randomization.schedule``)."""
 
@@ -198,6 +207,9 @@ class EnvConfig:
     action_clip: float = 20.0
     goal_speed: float = 0.8  # m/s, the speed the goal-velocity reward asks for
     waypoint_radius: float = 0.6  # m: an expert waypoint counts as passed within this
+    # radius: passed only within waypoint_radius; past: also once beyond it along the path
+    # (stage 2 trains with past, docs/unified.md; evaluations use radius)
+    waypoint_pass: WaypointPass = WaypointPass.radius
     reach_radius: float = 0.5  # m: terminus reached in training (evaluation: eval.reach_radius)
     max_roll: float = 0.8  # rad, pose check
     max_pitch: float = 1.0  # rad, pose check

@@ -134,7 +134,7 @@ class HikingEnv(EnvBase):
                                                self.num_actions, dev, dt)
         self.memory = Memory(n, self.num_actions, joints, dev, dt)
         self.air_time = AirTime(n, self.num_feet, self.dt, dev, dt)
-        self.goals = Goals(n, self.trails_t, c.waypoint_radius, dev)
+        self.goals = Goals(n, self.trails_t, c.waypoint_radius, dev, c.waypoint_pass)
         self.nav_progress = NavProgress(n, dev, dt)
         self.command = events.Command(n, c.command, c.goal_speed, self.evaluation, dev, dt)
         self.proprio_dim = 3 + 3 + 3 * self.num_actions + 3 + 2

@@ -25,7 +25,7 @@ from torchrl.envs import Compose, EnvBase, InitTracker, TensorDictPrimer, Transf
 from legoh import keys
 from legoh.checkpoint import CheckpointError, load_checkpoint
 from legoh.config.algo import NavReward, OracleConfig
-from legoh.config.env import CommandConfig
+from legoh.config.env import CommandConfig, WaypointPass
 from legoh.envs.hiking_env import make_env
 from legoh.modules.actor_critic import LOC, OracleInputDims
 from legoh.modules.students import Student, StudentDims, make_student, unroll
@@ -131,16 +131,22 @@ def student_command(cfg: DictConfig) -> CommandConfig:
     return dataclasses.replace(command, speed=[speed, speed], zero_prob=0.0)
 
 
-def student_env_overrides(cfg: DictConfig) -> dict:
+def student_env_overrides(cfg: DictConfig, evaluation: bool = False) -> dict:
     """Env settings of stage 2: depth on (unless the student is blind), the stage's
     navigation reward (:func:`nav_reward_weights`), the student's depth range, the
-    evaluation's speed command (:func:`student_command`)."""
+    evaluation's speed command (:func:`student_command`); in training, waypoints pass
+    once the robot is past them (``env.waypoint_pass=past``: the oracle's labels do not
+    turn a robot back to a waypoint it walked by). Evaluations keep ``env.waypoint_pass``
+    (radius), so a student's TR and TC count as its oracle's do."""
     depth = OmegaConf.to_object(cfg.env.depth)  # a DepthConfig
     depth.enabled = cfg.algo.student != "rma_b"
     if cfg.algo.depth_far is not None:
         depth.far = float(cfg.algo.depth_far)
     rewards = {**dict(cfg.env.rewards), **nav_reward_weights(cfg.algo)}
-    return {"depth": depth, "rewards": rewards, "command": student_command(cfg)}
+    out = {"depth": depth, "rewards": rewards, "command": student_command(cfg)}
+    if not evaluation:
+        out["waypoint_pass"] = WaypointPass.past
+    return out
 
 
 def wrap_student_env(env: EnvBase, state_spec) -> TransformedEnv:
@@ -156,7 +162,7 @@ def make_student_env(cfg: DictConfig, num_envs: int, state_shapes: tuple, evalua
 
     state_shape, held_dim = state_shapes
     env = make_env(cfg, num_envs=num_envs, evaluation=evaluation,
-                   **{**student_env_overrides(cfg), **overrides})
+                   **{**student_env_overrides(cfg, evaluation), **overrides})
     spec = Composite({keys.NAV_STATE: Unbounded(shape=(num_envs, *state_shape)),
                       keys.NAV_HELD: Unbounded(shape=(num_envs, held_dim))},
                      shape=(num_envs,))

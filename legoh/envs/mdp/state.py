@@ -215,16 +215,21 @@ class Memory:
 
 
 class Goals:
-    """Index of each env's current expert waypoint, advanced when the robot passes it.
+    """Index of each env's current expert waypoint, advanced when the robot passes it:
+    within ``radius`` of it, or (``rule="past"``) also once beyond it along the path, past
+    the line through it square to the segment that leads to it (from the previous waypoint,
+    or the trail start).
 
     ``start`` (N,) is the index an episode begins with: 0 at the trail start; the spawn
     event sets it to the next waypoint when it puts a robot on the trail
     (``env.spawn_remaining``), before :meth:`reset` copies it into ``index``.
     """
 
-    def __init__(self, n: int, trails: TrailTable, radius: float, device: torch.device
-                 ) -> None:
-        self.trails, self.radius = trails, radius
+    def __init__(self, n: int, trails: TrailTable, radius: float, device: torch.device,
+                 rule: str = "radius") -> None:
+        if str(rule) not in ("radius", "past"):
+            raise ValueError(f"env.waypoint_pass={rule!r}: choose radius or past")
+        self.trails, self.radius, self.past = trails, radius, str(rule) == "past"
         self.index = torch.zeros(n, dtype=torch.int64, device=device)
         self.start = torch.zeros(n, dtype=torch.int64, device=device)
         self.tile = torch.zeros(n, dtype=torch.int64, device=device)
@@ -242,8 +247,16 @@ class Goals:
         return self.trails.waypoints[self.tile[:, None], idx]
 
     def advance(self, base_xy: torch.Tensor) -> None:
-        near = torch.linalg.vector_norm(self.ahead(0) - base_xy, dim=1) < self.radius
-        self.index = self.index + (near & (self.index < self.last())).long()
+        """Move past the current waypoint those robots (base xy (N, 2)) that passed it."""
+        here = self.ahead(0)
+        passed = torch.linalg.vector_norm(here - base_xy, dim=1) < self.radius
+        if self.past:
+            t = self.trails
+            before = torch.where((self.index > 0)[:, None],
+                                 t.waypoints[self.tile, (self.index - 1).clamp(min=0)],
+                                 t.start[self.tile, :2])
+            passed |= ((base_xy - here) * (here - before)).sum(1) > 0
+        self.index = self.index + (passed & (self.index < self.last())).long()
 
     def remaining(self, xy: torch.Tensor) -> torch.Tensor:
         """Metres (N,) of expert path from points ``xy`` (N, 2) to the terminus: straight
