@@ -245,3 +245,39 @@ def test_stage_two_trains_with_the_past_rule_and_evaluates_with_radius() -> None
 def test_an_unknown_waypoint_rule_is_refused() -> None:
     with pytest.raises(ValueError, match="env.waypoint_pass"):
         Goals(1, l_trail(), radius=0.6, device=torch.device("cpu"), rule="near")
+
+
+# --------------------------------------------------------------------------- frame window
+def test_the_student_sees_four_frames_half_a_second_apart() -> None:
+    """The paper's window: 16 frames at 10 Hz sub-sampled to 4. Failed before: the last
+    4 consecutive frames (0.1 s apart, 0.3 s in all)."""
+    from legoh.envs.mdp.observations import DepthFrames
+    from tests.conftest import compose_config
+
+    cfg = compose_config("algo=unified")
+    depth = cfg.env.depth
+    frames = DepthFrames(1, depth, torch.device("cpu"))
+    for k in range(30):  # frame k is filled with the value k
+        frames.push(torch.full((1, depth.height, depth.width), float(k)))
+    seen = frames(None, {})
+    assert seen.shape == (1, 4, depth.height, depth.width)
+    ages = (29 - seen[0, :, 0, 0]) * depth.every * cfg.sim.dt * cfg.sim.decimation  # s
+    torch.testing.assert_close(ages, torch.tensor([1.5, 1.0, 0.5, 0.0]))
+
+
+def test_a_reset_fills_the_whole_window_with_its_first_frame() -> None:
+    from omegaconf import OmegaConf
+
+    from legoh.config.env import DepthConfig, depth_window
+    from legoh.envs.mdp.observations import DepthFrames
+
+    cfg = OmegaConf.structured(DepthConfig(history=7, stride=3, height=2, width=2))
+    assert depth_window(cfg) == [0, 3, 6]
+
+    class FakeEnv:  # what DepthFrames.render reads, replaced
+        pass
+
+    frames = DepthFrames(2, cfg, torch.device("cpu"))
+    frames.render = lambda env, ids: torch.ones(len(ids), 2, 2)
+    frames.reset(torch.tensor([1]), FakeEnv())
+    assert frames(None, {})[1].eq(1).all() and frames(None, {})[0].eq(0).all()

@@ -97,6 +97,13 @@ def depth_backend(value: DepthBackend | str) -> DepthBackend:
                          f"{[b.value for b in DepthBackend]}") from None
 
 
+def depth_window(cfg) -> list[int]:
+    """Indices into the last ``cfg.history`` frames (oldest first, newest last) of the frames
+    a student sees: the newest and every ``cfg.stride``-th before it, oldest first."""
+    newest = cfg.history - 1
+    return list(range(newest, -1, -cfg.stride))[::-1]
+
+
 @dataclass
 class DepthConfig:
     """Egocentric depth input: the one home of the image's size and far plane (the camera's
@@ -107,7 +114,11 @@ class DepthConfig:
     # cheaper a frame; multiray: MuJoCo's exact ray cast, the reference (docs/env.md)
     backend: DepthBackend = DepthBackend.raymarch
     every: int = 5  # policy steps between frames (10 Hz at 50 Hz)
-    frames: int = 4  # frame history length
+    # the frames a student sees: of the last ``history`` frames, every ``stride``-th counting
+    # back from the newest (depth_window). The paper's 16 sub-sampled to 4: 0, 0.5, 1.0 and
+    # 1.5 s old at 10 Hz
+    history: int = 16
+    stride: int = 5
     width: int = 32  # pixels: the cost of depth grows with pixels (experiments/bench_env.py)
     height: int = 24  # pixels
     far: float = 3.0  # m: range clip; frames are depth / far - 0.5

@@ -97,7 +97,8 @@ RANGES: list[tuple[str, Range]] = [
     # env
     ("env.rewards.*", ANY),
     ("env.history", COUNT), ("env.depth.every", COUNT),
-    ("env.depth.frames", COUNT), ("env.depth.width", COUNT), ("env.depth.height", COUNT),
+    ("env.depth.history", COUNT), ("env.depth.stride", COUNT),
+    ("env.depth.width", COUNT), ("env.depth.height", COUNT),
     ("env.randomization.pool_size", COUNT),
     ("env.min_base_height", FRACTION), ("env.command.zero_prob", FRACTION),
     ("env.gait.stance", FRACTION),
