@@ -281,3 +281,52 @@ def test_a_reset_fills_the_whole_window_with_its_first_frame() -> None:
     frames.render = lambda env, ids: torch.ones(len(ids), 2, 2)
     frames.reset(torch.tensor([1]), FakeEnv())
     assert frames(None, {})[1].eq(1).all() and frames(None, {})[0].eq(0).all()
+
+
+# --------------------------------------------------------------------------- prior
+WALKER = "experiments/results/learn_walk/h1-walk-s0-fast-c256-e3/oracle.pt"
+
+
+def test_the_pretrained_prior_rebuilds_teacher_actions_better_than_a_fresh_one() -> None:
+    """The VAE pre-trained on the walker's own rollouts, checked on new episodes. Measured
+    with the 4096-frame default: 0.18 action units against 0.71 for the old first iteration
+    (a fresh VAE, 4 steps) and 0.48 for each joint's mean."""
+    import copy
+    from pathlib import Path
+
+    from legoh.config.env import DepthConfig
+    from legoh.envs.hiking_env import make_env
+    from legoh.train.prior import make_prior, pretrain_prior, reconstruction_error, teacher_actions
+    from legoh.train.unified import load_oracle, student_env_overrides
+    from tests.conftest import compose_config
+
+    torch.set_num_threads(1)
+    walker = Path(__file__).resolve().parents[1] / WALKER
+    cfg = compose_config("algo=unified", "trail=flat", "trail.levels=1", "trail.variants=1",
+                         f"algo.oracle_checkpoint={walker}", "algo.prior_pretrain_frames=1024",
+                         "algo.prior_pretrain_steps=150")
+    env = make_env(cfg, 16, **{**student_env_overrides(cfg), "depth": DepthConfig()})
+    try:
+        oracle, _ = load_oracle(cfg, walker, env)
+        torch.manual_seed(0)
+        vae, optim, _ = make_prior(cfg, env.action_spec.shape[-1])
+        fresh = copy.deepcopy(vae)
+        out = pretrain_prior(vae, optim, env, oracle, cfg, torch.Generator().manual_seed(0))
+        held = teacher_actions(env, oracle, 512)  # new episodes (the rollout resets)
+    finally:
+        env.close()
+    bound = cfg.env.action_clip
+    pretrained = reconstruction_error(vae, held, bound)
+    assert out["actions"] == 1024
+    assert pretrained < 0.5 * reconstruction_error(fresh, held, bound)
+    assert pretrained < 0.7 * out["recon_error_mean_guess"]  # more than each joint's mean
+
+
+def test_a_vae_saved_before_the_fitted_range_still_loads() -> None:
+    from legoh.modules.vae import ActionVAE, ActionVAEConfig
+
+    vae = ActionVAE(4, ActionVAEConfig(hidden=8, blocks=1, latent=2))
+    old = {k: v for k, v in vae.state_dict().items() if k not in ("center", "spread")}
+    vae.fit_action_range(torch.randn(64, 4) * 2 + 1, bound=20.0)
+    vae.load_state_dict(old)
+    assert vae.center.eq(0).all() and vae.spread.eq(1).all()

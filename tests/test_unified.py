@@ -29,6 +29,7 @@ from tests.conftest import CONF_DIR, compose_config
 
 TINY = ("trail=flat", "algo.num_envs=4", "algo.steps_per_env=8", "algo.total_frames=64",
         "algo.oracle_frames=512", "algo.minibatches=2", "algo.epochs=1",
+        "algo.prior_pretrain_frames=32", "algo.prior_pretrain_steps=2",
         "eval.robots=2", "eval.seconds=1.0", "eval.levels=[0]", "eval.runs=1",
         "eval.variants=1")
 

@@ -104,6 +104,10 @@ class UnifiedConfig(OracleConfig):
     # stage's returns (measured); clipped, it would close that gap 0.2 an update
     clip_value: bool = False
     lr: float = 5e-4
+    # before the first iteration the oracle acts alone this many frames and the prior takes
+    # prior_pretrain_steps steps on its actions (0: no pre-training; legoh/train/prior.py)
+    prior_pretrain_frames: int = 4096
+    prior_pretrain_steps: int = 300
     vae_steps: int = 4  # prior updates on the oracle's actions per iteration (alternating)
     vae_lr: float = 1e-3
     # HLM triplet margin (cosine distance; docs/hlm.md). The masked negative of an exact copy

@@ -25,7 +25,7 @@ from torchrl.envs import Compose, EnvBase, InitTracker, TensorDictPrimer, Transf
 from legoh import keys
 from legoh.checkpoint import CheckpointError, load_checkpoint
 from legoh.config.algo import NavReward, OracleConfig
-from legoh.config.env import CommandConfig, WaypointPass
+from legoh.config.env import CommandConfig, DepthConfig, WaypointPass
 from legoh.envs.hiking_env import make_env
 from legoh.modules.actor_critic import LOC, OracleInputDims
 from legoh.modules.students import Student, StudentDims, make_student, unroll
@@ -38,6 +38,7 @@ from legoh.train.oracle import (
     oracle_net_config,
     train_oracle,
 )
+from legoh.train.prior import make_prior, pretrain_prior, train_prior
 from legoh.train.runner import OnPolicyRunner, training_session
 
 
@@ -199,58 +200,6 @@ def load_student(cfg: DictConfig, path: str | Path, student: Student) -> dict:
     return state
 
 
-# ----------------------------------------------------------------------------- prior
-def make_prior(cfg: DictConfig, action_dim: int):
-    """The action prior of ``algo.prior``: (VAE or None, its optimiser, the HLM loss)."""
-    prior = cfg.algo.prior
-    if prior == "none":
-        return None, None, None
-    if prior not in ("hlm", "vae"):
-        raise ValueError(f"unknown algo.prior {prior!r}; choose one of ['hlm', 'vae', 'none']")
-    from legoh.modules.vae import ActionVAE, ActionVAEConfig
-
-    vae = ActionVAE(action_dim, ActionVAEConfig(masked=prior == "hlm"))
-    optim = torch.optim.Adam(vae.parameters(), lr=cfg.algo.vae_lr)
-    w = cfg.algo.weights
-    bound = cfg.env.action_clip
-    loss = functools.partial(_prior_loss, vae, bound, w.c_mt, w.c_ms, cfg.algo.hlm_margin,
-                             prior)
-    return vae, optim, loss
-
-
-def _prior_loss(vae, bound, c_mt, c_ms, margin, prior, teacher, student):
-    """HLM's terms (masked VAE); with the vanilla VAE only the latent similarity remains:
-    a vanilla VAE has no masked negative, so the triplet term has nothing to push away."""
-    from legoh.objectives.hlm import hlm_loss
-
-    out = hlm_loss(vae, teacher, student, bound, c_mt=c_mt, c_ms=c_ms, margin=margin)
-    if prior == "vae":
-        out = out.exclude(*[k for k in out.keys() if "triplet" in k])
-    return out
-
-
-def train_prior(vae, optim, teacher: torch.Tensor, cfg: DictConfig,
-                gen: torch.Generator) -> dict[str, float]:
-    """``algo.vae_steps`` minibatch steps of the prior on the oracle's actions (alternating
-    with distillation, as the paper trains HLM's VAE)."""
-    from legoh.objectives.hlm import vae_loss
-
-    w = cfg.algo.weights
-    stats: dict[str, float] = {}
-    size = max(1, teacher.shape[0] // cfg.algo.minibatches)
-    vae.requires_grad_(True)
-    for _ in range(cfg.algo.vae_steps):
-        idx = torch.randint(0, teacher.shape[0], (size,), generator=gen)
-        out = vae_loss(vae, teacher[idx], cfg.env.action_clip, generator=gen)
-        total = w.w5 * out["loss_recon"] + w.w6 * out["loss_kl"]
-        optim.zero_grad()
-        total.backward()
-        optim.step()
-        stats = {f"prior/{k}": float(v.detach()) for k, v in out.items() if v.numel() == 1}
-    vae.requires_grad_(False)  # frozen while it scores the student
-    return stats
-
-
 # ----------------------------------------------------------------------------- loop
 def label_with_oracle(oracle, batch) -> None:
     """DAgger labels: the oracle's mean action and scandot latent on the student's states."""
@@ -331,6 +280,15 @@ def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None,
     if resume:
         runner.resume(load_student(cfg, resume, student))
         print(f"[legoh] resumed from {resume} at iteration {runner.iteration}")
+    elif vae is not None and algo.prior_pretrain_frames > 0:
+        rollout_env = make_env(cfg, algo.num_envs, **{**student_env_overrides(cfg),
+                                                       "depth": DepthConfig()})  # no frames
+        out = pretrain_prior(vae, vae_optim, rollout_env, oracle, cfg, gen)
+        rollout_env.close()
+        print(f"[legoh] action prior pre-trained on {out['actions']} of the oracle's actions "
+              f"({algo.prior_pretrain_steps} steps): reconstruction error "
+              f"{out['recon_error_before']:.3f} -> {out['recon_error_after']:.3f} (each "
+              f"joint's mean: {out['recon_error_mean_guess']:.3f})")
 
     def update(batch) -> dict:
         clock = {"labels": time.perf_counter()}
