@@ -39,6 +39,13 @@ def artefacts(tmp_path_factory):
     return tmp_path_factory.mktemp("artefacts")
 
 
+@pytest.fixture(autouse=True)
+def no_shipped_oracle(tmp_path, monkeypatch):
+    """These tests train their tiny oracle (or reuse it): a shipped oracle in pretrained/
+    would be the teacher otherwise."""
+    monkeypatch.setattr("legoh.train.oracle.PRETRAINED_DIR", tmp_path / "no-pretrained")
+
+
 def tiny(algo, artefacts, *more):
     return compose_config(f"algo={algo}", f"artefacts={artefacts}", *TINY, *more)
 
@@ -51,6 +58,42 @@ def test_oracle_is_trained_once_then_reused(artefacts):
     assert again == first and first.stat().st_mtime_ns == stamp
     other = oracle_artefact_dir(tiny("unified", artefacts, "seed=1"))
     assert other != first.parent  # another seed needs another oracle
+
+
+def test_the_shipped_oracle_is_the_default_teacher(artefacts, tmp_path, monkeypatch):
+    """With no algo.oracle_checkpoint the robot's pretrained/<robot>_oracle.pt teaches, and
+    nothing is trained; algo.oracle_checkpoint=pretrained names it too."""
+    trained = ensure_oracle(tiny("unified", artefacts))  # a real checkpoint to ship
+    shipped = tmp_path / "pretrained"
+    shipped.mkdir()
+    shutil.copy(trained, shipped / "h1_oracle.pt")
+    monkeypatch.setattr("legoh.train.oracle.PRETRAINED_DIR", shipped)
+    fresh = tmp_path / "fresh-artefacts"
+    assert ensure_oracle(tiny("unified", fresh)) == shipped / "h1_oracle.pt"
+    assert not fresh.exists()  # no oracle trained
+    pinned = tiny("unified", fresh, "algo.oracle_checkpoint=pretrained")
+    assert ensure_oracle(pinned) == shipped / "h1_oracle.pt"
+
+
+def test_a_teacher_of_another_robot_or_layout_is_refused(artefacts, tmp_path):
+    """The teacher's checkpoint names its robot and observation layout; a mismatch is
+    refused naming the field, before anything trains."""
+    from legoh.checkpoint import save_checkpoint
+    from legoh.train.unified import load_oracle, make_student_env
+
+    cfg = tiny("rma_b", artefacts)
+    state = load_checkpoint(ensure_oracle(cfg))
+    env = make_student_env(cfg, 1, ((1,), 1))
+    try:
+        save_checkpoint(tmp_path / "g1.pt", {**state, "robot": "g1"})
+        with pytest.raises(CheckpointError, match="robot 'g1'"):
+            load_oracle(cfg, tmp_path / "g1.pt", env)
+        layout = {**state["layout"], "obs/proprio": (7,)}
+        save_checkpoint(tmp_path / "layout.pt", {**state, "layout": layout})
+        with pytest.raises(CheckpointError, match="obs/proprio"):
+            load_oracle(cfg, tmp_path / "layout.pt", env)
+    finally:
+        env.close()
 
 
 @pytest.mark.parametrize("algo", ["unified", "ep_h_hlm", "rma_b"])

@@ -36,6 +36,8 @@ from legoh.train.oracle import (
     build_oracle,
     load_oracle_checkpoint,
     oracle_net_config,
+    pretrained_path,
+    resolve_checkpoint,
     train_oracle,
 )
 from legoh.train.prior import make_prior, pretrain_prior, train_prior
@@ -74,12 +76,26 @@ def oracle_artefact_dir(cfg: DictConfig) -> Path:
     return Path(cfg.artefacts) / f"oracle-{cfg.robot.name}-{cfg.trail.name}-{digest}"
 
 
+def shipped_oracle(robot: str) -> Path | None:
+    """``pretrained/<robot>_oracle.pt`` when the repository ships one, else None."""
+    try:
+        return pretrained_path(robot)
+    except FileNotFoundError:
+        return None
+
+
 def ensure_oracle(cfg: DictConfig) -> Path:
-    """The oracle checkpoint for this run: ``algo.oracle_checkpoint`` when given; else the
-    artefact of a previous run with the same stage-1 config (resumed if it was killed);
-    else one trained now with the small budget ``algo.oracle_frames``."""
+    """The oracle checkpoint for this run: ``algo.oracle_checkpoint`` when given
+    (``pretrained``: the robot's shipped one); else the robot's shipped oracle when there is
+    one; else the artefact of a previous run with the same stage-1 config (resumed if it was
+    killed); else one trained now with the small budget ``algo.oracle_frames``."""
     if cfg.algo.oracle_checkpoint:
-        return Path(cfg.algo.oracle_checkpoint)
+        return resolve_checkpoint(str(cfg.algo.oracle_checkpoint), cfg.robot.name)
+    shipped = shipped_oracle(cfg.robot.name)
+    if shipped is not None:
+        print(f"[legoh] teacher: the shipped oracle {shipped} (another: "
+              f"algo.oracle_checkpoint=PATH)")
+        return shipped
     out = oracle_artefact_dir(cfg)
     ckpt, done = out / "oracle.pt", out / "DONE"
     if done.is_file() and ckpt.is_file():
