@@ -330,3 +330,33 @@ def test_a_vae_saved_before_the_fitted_range_still_loads() -> None:
     vae.fit_action_range(torch.randn(64, 4) * 2 + 1, bound=20.0)
     vae.load_state_dict(old)
     assert vae.center.eq(0).all() and vae.spread.eq(1).all()
+
+
+# --------------------------------------------------------------------------- DAgger mixture
+def test_the_teacher_share_decays_from_one_to_zero() -> None:
+    from legoh.train.dagger import teacher_share
+
+    assert [teacher_share(i, 4) for i in range(6)] == [1.0, 0.75, 0.5, 0.25, 0.0, 0.0]
+    assert teacher_share(0, 0) == 0.0 and teacher_share(7, 0) == 0.0  # off
+
+
+def test_the_mixture_executes_the_teacher_on_a_share_beta_of_the_steps() -> None:
+    from tensordict import TensorDict
+    from tensordict.nn import TensorDictModule
+
+    from legoh import keys
+    from legoh.modules.actor_critic import LOC
+    from legoh.train.dagger import TeacherMix, student_rows
+
+    student = TensorDictModule(lambda x: torch.zeros(x.shape[0], 2), ["obs"], [keys.ACTION])
+    teacher = TensorDictModule(lambda x: torch.ones(x.shape[0], 2), ["obs"], [LOC])
+    mix = TeacherMix(student, teacher)
+    td = TensorDict({"obs": torch.zeros(4000, 3)}, batch_size=[4000])
+    for beta in (0.0, 0.25, 1.0):
+        mix.beta.fill_(beta)
+        torch.manual_seed(0)
+        out = mix(td.clone())
+        acted = out.get(keys.TEACHER_ACTED).squeeze(-1)
+        assert out.get(keys.ACTION)[acted].eq(1).all() and out.get(keys.ACTION)[~acted].eq(0).all()
+        assert abs(float(acted.float().mean()) - beta) < 0.03
+        assert student_rows(out).shape[0] == int((~acted).sum())

@@ -136,6 +136,18 @@ def test_stage_two_builds_the_critic_its_oracle_trained(artefacts, tmp_path):
     assert {32, 16} <= widths and 512 not in widths
 
 
+def test_dagger_mixture_runs_and_logs_its_share(artefacts, tmp_path):
+    """algo.dagger_mix_iterations=2: the teacher acts on every step of the first batch (no
+    PPO step: the student acted on none), on half of the second."""
+    import csv
+
+    run = train_student(tiny("unified", artefacts, "algo.dagger_mix_iterations=2"), tmp_path)
+    with run.csv.open() as f:
+        rows = list(csv.DictReader(f))
+    assert [float(r["dagger/beta"]) for r in rows] == [1.0, 0.5]
+    assert float(rows[0]["dagger/teacher_acted"]) == 1.0
+
+
 def test_checkpoint_of_another_student_is_refused(artefacts, tmp_path):
     run = train_student(tiny("rma_b", artefacts), tmp_path / "a")
     with pytest.raises(CheckpointError, match="student 'rma_b'"):

@@ -114,7 +114,12 @@ class UnifiedConfig(OracleConfig):
     # of the oracle's action lands ~0.03-0.12 away, so with 0.2 the term never reaches zero
     hlm_margin: float = 0.2
     distill_epochs: int = 2  # passes of the imitation losses over each batch (in minibatches)
-    oracle_checkpoint: str | None = None  # None: train one first (oracle_frames), or reuse it
+    # DAgger's mixture: the teacher's action is executed on a share beta of the steps,
+    # 1 at the first iteration, 0 from this many on (linear; 0: off). legoh/train/dagger.py
+    dagger_mix_iterations: int = 0
+    # None: the robot's shipped oracle (pretrained/), else one trained first (oracle_frames)
+    # or reused; pretrained: the shipped one
+    oracle_checkpoint: str | None = None
     oracle_frames: int = 200_000  # budget of the oracle trained when none is given
     # the navigation reward of this stage. paper: -0.75 d a step (-0.33 at the spawn vs
     # +0.04 for the walker's whole reward) made an early fall the best return (measured,

@@ -32,6 +32,7 @@ from legoh.modules.students import Student, StudentDims, make_student, unroll
 from legoh.objectives.distill import distillation_loss
 from legoh.objectives.ppo import make_ppo, ppo_update
 from legoh.runs import GracefulStop, resume_command
+from legoh.train.dagger import TeacherMix, student_rows, teacher_share
 from legoh.train.oracle import (
     build_oracle,
     load_oracle_checkpoint,
@@ -306,6 +307,12 @@ def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None,
               f"{out['recon_error_before']:.3f} -> {out['recon_error_after']:.3f} (each "
               f"joint's mean: {out['recon_error_mean_guess']:.3f})")
 
+    policy, mix, done = student.policy, None, [runner.iteration]  # done: updates so far
+    if algo.dagger_mix_iterations > 0:
+        mix = TeacherMix(student.policy, oracle)
+        mix.beta.fill_(teacher_share(runner.iteration, algo.dagger_mix_iterations))
+        policy = mix
+
     def update(batch) -> dict:
         clock = {"labels": time.perf_counter()}
         label_with_oracle(oracle, batch)
@@ -317,17 +324,24 @@ def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None,
         clock["prior"] = time.perf_counter()
         if algo.ppo and algo.weights.w1:
             gae(batch)
-            stats.update(ppo_update(loss, ppo_optim, batch.reshape(-1), algo, gen,
-                                    scale=algo.weights.w1, lagged=bool(cfg.collector.overlap)))
+            acted = student_rows(batch)  # DAgger's mixture: PPO learns from the student's steps
+            if acted.shape[0] >= algo.minibatches:
+                stats.update(ppo_update(loss, ppo_optim, acted, algo, gen, scale=algo.weights.w1,
+                                        lagged=bool(cfg.collector.overlap)))
         clock["ppo"] = time.perf_counter()
         stats.update(distill(student, batch, cfg, distill_optim, prior_loss, gen))
         clock["distill"] = time.perf_counter()
+        if mix is not None:
+            stats["dagger/beta"] = float(mix.beta)
+            stats["dagger/teacher_acted"] = float(batch.get(keys.TEACHER_ACTED).float().mean())
+            done[0] += 1  # the next batch is collected with the next iteration's share
+            mix.beta.fill_(teacher_share(done[0], algo.dagger_mix_iterations))
         marks = list(clock.items())
         stats.update({f"time/{k}": t1 - t0 for (_, t0), (k, t1) in zip(marks[:-1], marks[1:],
                                                                         strict=True)})
         return stats
 
-    it = runner.learn(student.policy, functools.partial(make_student_env, cfg,
+    it = runner.learn(policy, functools.partial(make_student_env, cfg,
                                                           state_shapes=shapes),
                       update, stop, resume,
                       postfix=lambda s: {"imit": f"{s.get('distill/loss_action', np.nan):.3f}"})
