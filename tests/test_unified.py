@@ -75,6 +75,36 @@ def test_the_shipped_oracle_is_the_default_teacher(artefacts, tmp_path, monkeypa
     assert ensure_oracle(pinned) == shipped / "h1_oracle.pt"
 
 
+def test_a_job_waits_for_the_job_training_its_oracle(artefacts, tmp_path):
+    """Two jobs of a sweep that need the same oracle: the second waits for the first and
+    reads its result. Failed before with RunFolderBusy."""
+    import threading
+    import time
+
+    from legoh.runs import run_lock
+
+    trained = ensure_oracle(tiny("unified", artefacts))
+    cfg = tiny("unified", tmp_path / "artefacts")
+    out = oracle_artefact_dir(cfg)
+    holding = threading.Event()
+
+    def first_job():  # holds the folder as train_oracle does, then leaves a finished oracle
+        with run_lock(out):
+            holding.set()
+            time.sleep(1.0)
+            shutil.copy(trained, out / "oracle.pt")
+            (out / "DONE").write_text("the first job's\n")
+
+    thread = threading.Thread(target=first_job)
+    thread.start()
+    holding.wait()
+    try:
+        assert ensure_oracle(cfg) == out / "oracle.pt"
+    finally:
+        thread.join()
+    assert (out / "DONE").read_text() == "the first job's\n"  # read, not trained again
+
+
 def test_a_teacher_of_another_robot_or_layout_is_refused(artefacts, tmp_path):
     """The teacher's checkpoint names its robot and observation layout; a mismatch is
     refused naming the field, before anything trains."""

@@ -31,7 +31,7 @@ from legoh.modules.actor_critic import LOC, OracleInputDims
 from legoh.modules.students import Student, StudentDims, make_student, unroll
 from legoh.objectives.distill import distillation_loss
 from legoh.objectives.ppo import make_ppo, ppo_update
-from legoh.runs import GracefulStop, resume_command
+from legoh.runs import GracefulStop, RunFolderBusy, resume_command, wait_for_run
 from legoh.train.dagger import TeacherMix, student_rows, teacher_share
 from legoh.train.oracle import (
     build_oracle,
@@ -99,9 +99,20 @@ def ensure_oracle(cfg: DictConfig) -> Path:
         return shipped
     out = oracle_artefact_dir(cfg)
     ckpt, done = out / "oracle.pt", out / "DONE"
-    if done.is_file() and ckpt.is_file():
-        print(f"[legoh] reusing the oracle at {ckpt}")
-        return ckpt
+    while True:
+        wait_for_run(out)  # a job of the same sweep training this oracle: read it after
+        if done.is_file() and ckpt.is_file():
+            print(f"[legoh] reusing the oracle at {ckpt}")
+            return ckpt
+        try:
+            return _train_artefact_oracle(cfg, out)
+        except RunFolderBusy:  # another job took the folder first: wait for it, then read
+            continue
+
+
+def _train_artefact_oracle(cfg: DictConfig, out: Path) -> Path:
+    """Train (or resume) the small oracle of ``cfg`` in ``out``, then mark it ``DONE``."""
+    ckpt = out / "oracle.pt"
     stage1 = oracle_config(cfg)
     resume = str(ckpt) if ckpt.is_file() else None
     print(f"[legoh] no oracle given: training one ({stage1.algo.total_frames} frames) in {out}")
@@ -109,7 +120,7 @@ def ensure_oracle(cfg: DictConfig) -> Path:
     (out / "config.yaml").write_text(OmegaConf.to_yaml(stage1, resolve=True))
     hint = f"{resume_command(None)}   # the same command: it resumes the oracle in {out}"
     run = train_oracle(stage1, out, resume=resume, resume_hint=hint)
-    done.write_text(f"{run.iterations} iterations\n")
+    (out / "DONE").write_text(f"{run.iterations} iterations\n")
     return run.checkpoint
 
 
