@@ -284,7 +284,7 @@ def test_a_reset_fills_the_whole_window_with_its_first_frame() -> None:
 
 
 # --------------------------------------------------------------------------- prior
-WALKER = "experiments/results/learn_walk/h1-walk-s0-fast-c256-e3/oracle.pt"
+WALKER_CHECKPOINT = "experiments/results/learn_walk/h1-walk-s0-fast-c256-e3/oracle.pt"
 
 
 def test_the_pretrained_prior_rebuilds_teacher_actions_better_than_a_fresh_one() -> None:
@@ -301,7 +301,7 @@ def test_the_pretrained_prior_rebuilds_teacher_actions_better_than_a_fresh_one()
     from tests.conftest import compose_config
 
     torch.set_num_threads(1)
-    walker = Path(__file__).resolve().parents[1] / WALKER
+    walker = Path(__file__).resolve().parents[1] / WALKER_CHECKPOINT
     cfg = compose_config("algo=unified", "trail=flat", "trail.levels=1", "trail.variants=1",
                          f"algo.oracle_checkpoint={walker}", "algo.prior_pretrain_frames=1024",
                          "algo.prior_pretrain_steps=150")
