@@ -1,12 +1,16 @@
-"""Run a study's sweep (optional) and gather its jobs into the paper-style table.
+"""Run a study's sweep (optional) and gather its jobs into the paper-style tables.
 
     python experiments/study.py ablation_temporal              # gather multirun/ablation_temporal
-    python experiments/study.py plugin_hlm --run --frames 40000  # small-budget sweep, then gather
+    python experiments/study.py plugin_hlm --run --frames 40000 --eval-runs 3
 
 Studies are the sweeps in ``conf/experiment/`` (ablation_temporal, ablation_prior,
 plugin_hlm, robots, benchmark). ``--run`` launches ``python run.py -m +experiment=<study>``
-with the budget overrides; each job trains (or reuses) its seed's oracle, trains its
-student, and benchmarks it. The table goes to ``experiments/results/<study>/``.
+with the budget overrides; each job takes its teacher (the robot's shipped oracle, a given
+``algo.oracle_checkpoint=...``, or one trained once per seed and shared: a job that finds
+another one training it waits, then reads it), trains its student, and benchmarks it.
+The tables (overall, then per trail category; mean ± std over the evaluation runs of each
+method's jobs, as the paper's ± is over 5 evaluation runs) go to
+``experiments/results/<study>/``.
 """
 
 from __future__ import annotations
@@ -31,6 +35,9 @@ def main() -> None:
                         help="frames of each seed's oracle (trained once, then reused)")
     parser.add_argument("--seeds", default=None, help="comma-separated seeds, e.g. 0,1")
     parser.add_argument("--trail", default=None, help="trail of every job (default: config)")
+    parser.add_argument("--eval-runs", type=int, default=None,
+                        help="evaluation runs of each job's benchmark (eval.runs; the "
+                             "tables' std is over them)")
     parser.add_argument("--sweep-dir", default=None,
                         help="where the sweep's jobs are (default multirun/<study>)")
     args, overrides = parser.parse_known_args()  # the rest: Hydra overrides for every job
@@ -50,6 +57,8 @@ def main() -> None:
             cmd.append(f"seed={args.seeds}")
         if args.trail:
             cmd.append(f"trail={args.trail}")
+        if args.eval_runs:
+            cmd.append(f"eval.runs={args.eval_runs}")
         cmd += overrides
         print("[study]", " ".join(cmd), flush=True)
         subprocess.run(cmd, check=True, cwd=ROOT)

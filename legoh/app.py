@@ -71,14 +71,18 @@ def train_and_evaluate(cfg: DictConfig, out_dir: Path) -> None:
 
 
 def export_meta(cfg: DictConfig) -> dict:
-    """What a deployment needs besides the network: robot, action scale, depth range."""
+    """What a deployment needs besides the network: robot, action scale, the depth rate and
+    frame window (keep the last ``depth_history`` frames, feed every ``depth_stride``-th
+    counting back from the newest, oldest first)."""
     from legoh.envs.robots import build_robot_spec
 
     _, info = build_robot_spec(OmegaConf.to_object(cfg.robot))
     return {"robot": cfg.robot.name, "action_scale": info.action_scale.tolist(),
             "action_clip": float(cfg.env.action_clip), "policy_hz": 1.0 / (
                 cfg.sim.dt * cfg.sim.decimation),
-            "depth_every": int(cfg.env.depth.every), "algo": cfg.algo.name}
+            "depth_every": int(cfg.env.depth.every),
+            "depth_history": int(cfg.env.depth.history),
+            "depth_stride": int(cfg.env.depth.stride), "algo": cfg.algo.name}
 
 
 def export(cfg: DictConfig, out_dir: Path) -> Path:

@@ -21,6 +21,8 @@ EXPERT_GOALS = ("expert", "goals")  # (3, 2) next three expert waypoints, robot 
 ACTION = "action"
 TEACHER_ACTION = ("teacher", "action")
 TEACHER_LATENT = ("teacher", "latent")
+# (1,) bool: the teacher's action was executed on this step (DAgger's mixture, train/dagger.py)
+TEACHER_ACTED = ("teacher", "acted")
 
 # Student (unified policy and baselines): written by the navigation module, read by the
 # locomotion module and the distillation losses

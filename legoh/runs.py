@@ -147,6 +147,29 @@ def run_lock(folder: Path) -> Iterator[Path]:
                 fcntl.flock(f, fcntl.LOCK_UN)
 
 
+def wait_for_run(folder: Path) -> bool:
+    """Block while another run holds ``folder``'s lock (:func:`run_lock`); True if one did.
+
+    A shared lock waits for the holder's exclusive one and is dropped at once: the folder
+    is only read afterwards (a stage-2 job reusing the oracle another job trained there).
+    """
+    path = Path(folder) / LOCK_NAME
+    if fcntl is None or not path.is_file():
+        return False
+    with path.open("r") as f:
+        try:
+            fcntl.flock(f, fcntl.LOCK_SH | fcntl.LOCK_NB)
+            waited = False
+        except BlockingIOError:
+            holder = f.read().strip() or "?"
+            print(f"[legoh] {folder} is in use by another run (pid {holder}): waiting for it",
+                  flush=True)
+            fcntl.flock(f, fcntl.LOCK_SH)
+            waited = True
+        fcntl.flock(f, fcntl.LOCK_UN)
+    return waited
+
+
 def run_folder(mode: str, resume: str | None, hydra_dir: Path,
                hydra_overrides: Sequence[str] = ()) -> Path:
     """The folder a run writes to: Hydra's run folder, except that a resumed training run

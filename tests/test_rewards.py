@@ -49,7 +49,7 @@ def neutral(**changes: object) -> StepState:
         level=zeros(N, dtype=torch.int64), command=zeros(N, 2), phase=zeros(N, F),
         stance=torch.ones(N, F, dtype=torch.bool), feet_height=zeros(N, F),
         swing_target=zeros(N, F), advance=torch.ones(N, dtype=torch.bool),
-        failed=zeros(N, dtype=torch.bool),
+        path_progress=zeros(N), line_progress=zeros(N), failed=zeros(N, dtype=torch.bool),
     )
     return replace(state, **{k: torch.as_tensor(v) for k, v in changes.items()})
 
@@ -109,6 +109,12 @@ CASES: dict[str, tuple[dict, list[float], str]] = {
                     [0.0, 0.01], "zero at the target height"),
     "pn_distance": ({"terminus_xy": rows([0.3, 0.0], [0.0, 4.0])}, [1.0, -3.0],
                     "1 inside the reach radius, -0.75 d outside"),
+    "pn_progress": ({"path_progress": np.array([0.8, -0.3])}, [0.8, -0.3],
+                    "the path left shrinking pays, growing costs (m/s)"),
+    "pn_line_progress": ({"line_progress": np.array([0.5, -0.5])}, [0.5, -0.5],
+                         "the straight-line distance shrinking pays (m/s)"),
+    "pn_reach": ({"terminus_xy": rows([0.3, 0.0], [0.0, 4.0])}, [1.0, 0.0],
+                 "1 inside the reach radius, nothing outside"),
     "dof_pos_limits": ({"dof_pos": rows([0.9, -0.9, 0.0, 0.0], [1.2, -1.5, 0.0, 0.0])},
                        [0.0, 0.7], "zero inside the range, overshoot summed outside"),
     "tracking_lin_vel": (

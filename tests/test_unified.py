@@ -29,6 +29,7 @@ from tests.conftest import CONF_DIR, compose_config
 
 TINY = ("trail=flat", "algo.num_envs=4", "algo.steps_per_env=8", "algo.total_frames=64",
         "algo.oracle_frames=512", "algo.minibatches=2", "algo.epochs=1",
+        "algo.prior_pretrain_frames=32", "algo.prior_pretrain_steps=2",
         "eval.robots=2", "eval.seconds=1.0", "eval.levels=[0]", "eval.runs=1",
         "eval.variants=1")
 
@@ -36,6 +37,13 @@ TINY = ("trail=flat", "algo.num_envs=4", "algo.steps_per_env=8", "algo.total_fra
 @pytest.fixture(scope="module")
 def artefacts(tmp_path_factory):
     return tmp_path_factory.mktemp("artefacts")
+
+
+@pytest.fixture(autouse=True)
+def no_shipped_oracle(tmp_path, monkeypatch):
+    """These tests train their tiny oracle (or reuse it): a shipped oracle in pretrained/
+    would be the teacher otherwise."""
+    monkeypatch.setattr("legoh.train.oracle.PRETRAINED_DIR", tmp_path / "no-pretrained")
 
 
 def tiny(algo, artefacts, *more):
@@ -50,6 +58,72 @@ def test_oracle_is_trained_once_then_reused(artefacts):
     assert again == first and first.stat().st_mtime_ns == stamp
     other = oracle_artefact_dir(tiny("unified", artefacts, "seed=1"))
     assert other != first.parent  # another seed needs another oracle
+
+
+def test_the_shipped_oracle_is_the_default_teacher(artefacts, tmp_path, monkeypatch):
+    """With no algo.oracle_checkpoint the robot's pretrained/<robot>_oracle.pt teaches, and
+    nothing is trained; algo.oracle_checkpoint=pretrained names it too."""
+    trained = ensure_oracle(tiny("unified", artefacts))  # a real checkpoint to ship
+    shipped = tmp_path / "pretrained"
+    shipped.mkdir()
+    shutil.copy(trained, shipped / "h1_oracle.pt")
+    monkeypatch.setattr("legoh.train.oracle.PRETRAINED_DIR", shipped)
+    fresh = tmp_path / "fresh-artefacts"
+    assert ensure_oracle(tiny("unified", fresh)) == shipped / "h1_oracle.pt"
+    assert not fresh.exists()  # no oracle trained
+    pinned = tiny("unified", fresh, "algo.oracle_checkpoint=pretrained")
+    assert ensure_oracle(pinned) == shipped / "h1_oracle.pt"
+
+
+def test_a_job_waits_for_the_job_training_its_oracle(artefacts, tmp_path):
+    """Two jobs of a sweep that need the same oracle: the second waits for the first and
+    reads its result. Failed before with RunFolderBusy."""
+    import threading
+    import time
+
+    from legoh.runs import run_lock
+
+    trained = ensure_oracle(tiny("unified", artefacts))
+    cfg = tiny("unified", tmp_path / "artefacts")
+    out = oracle_artefact_dir(cfg)
+    holding = threading.Event()
+
+    def first_job():  # holds the folder as train_oracle does, then leaves a finished oracle
+        with run_lock(out):
+            holding.set()
+            time.sleep(1.0)
+            shutil.copy(trained, out / "oracle.pt")
+            (out / "DONE").write_text("the first job's\n")
+
+    thread = threading.Thread(target=first_job)
+    thread.start()
+    holding.wait()
+    try:
+        assert ensure_oracle(cfg) == out / "oracle.pt"
+    finally:
+        thread.join()
+    assert (out / "DONE").read_text() == "the first job's\n"  # read, not trained again
+
+
+def test_a_teacher_of_another_robot_or_layout_is_refused(artefacts, tmp_path):
+    """The teacher's checkpoint names its robot and observation layout; a mismatch is
+    refused naming the field, before anything trains."""
+    from legoh.checkpoint import save_checkpoint
+    from legoh.train.unified import load_oracle, make_student_env
+
+    cfg = tiny("rma_b", artefacts)
+    state = load_checkpoint(ensure_oracle(cfg))
+    env = make_student_env(cfg, 1, ((1,), 1))
+    try:
+        save_checkpoint(tmp_path / "g1.pt", {**state, "robot": "g1"})
+        with pytest.raises(CheckpointError, match="robot 'g1'"):
+            load_oracle(cfg, tmp_path / "g1.pt", env)
+        layout = {**state["layout"], "obs/proprio": (7,)}
+        save_checkpoint(tmp_path / "layout.pt", {**state, "layout": layout})
+        with pytest.raises(CheckpointError, match="obs/proprio"):
+            load_oracle(cfg, tmp_path / "layout.pt", env)
+    finally:
+        env.close()
 
 
 @pytest.mark.parametrize("algo", ["unified", "ep_h_hlm", "rma_b"])
@@ -90,6 +164,18 @@ def test_stage_two_builds_the_critic_its_oracle_trained(artefacts, tmp_path):
     critic = load_checkpoint(run.checkpoint)["models"]["critic"]
     widths = {w.shape[0] for name, w in critic.items() if name.endswith("weight")}
     assert {32, 16} <= widths and 512 not in widths
+
+
+def test_dagger_mixture_runs_and_logs_its_share(artefacts, tmp_path):
+    """algo.dagger_mix_iterations=2: the teacher acts on every step of the first batch (no
+    PPO step: the student acted on none), on half of the second."""
+    import csv
+
+    run = train_student(tiny("unified", artefacts, "algo.dagger_mix_iterations=2"), tmp_path)
+    with run.csv.open() as f:
+        rows = list(csv.DictReader(f))
+    assert [float(r["dagger/beta"]) for r in rows] == [1.0, 0.5]
+    assert float(rows[0]["dagger/teacher_acted"]) == 1.0
 
 
 def test_checkpoint_of_another_student_is_refused(artefacts, tmp_path):

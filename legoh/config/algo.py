@@ -1,7 +1,7 @@
 """Algorithm config schemas (``conf/algo/*.yaml``)."""
 
 from dataclasses import dataclass, field
-from enum import Enum
+from enum import Enum, StrEnum
 
 
 class Precision(Enum):
@@ -10,6 +10,14 @@ class Precision(Enum):
     float32 = "float32"
     bfloat16 = "bfloat16"  # autocast: matrix products in bfloat16 (fast with AMX / tensor cores)
     auto = "auto"  # bfloat16 where the learner's device runs it fast, else float32
+
+
+class NavReward(StrEnum):
+    """The unified stage's navigation reward (``algo.nav_reward``; docs/unified.md)."""
+
+    progress = "progress"  # m/s gained along the remaining expert path + the reach bonus
+    line_progress = "line_progress"  # m/s gained in a straight line + the reach bonus
+    paper = "paper"  # Table 6's point navigation: 1 inside the reach radius, else -0.75 d
 
 
 @dataclass
@@ -29,6 +37,9 @@ class OracleConfig:
     gamma: float = 0.99
     gae_lambda: float = 0.95
     value_coef: float = 1.0  # critic loss weight (rsl_rl)
+    # PPO's value clipping (rsl_rl's use_clipped_value_loss): each update moves the value at
+    # most clip_epsilon from the one it collected with
+    clip_value: bool = True
     # initial action std, units of the per-joint action scale: 0.5 asks each joint for 1/8
     # of its torque limit (std 1, mjlab's, felled every robot within 1.7 s, 0.5 two thirds in 5 s)
     init_noise_std: float = 0.5
@@ -85,15 +96,39 @@ class UnifiedConfig(OracleConfig):
     ppo: bool = True  # RL on the student's own rollouts (EP-H and RMA-* distill only)
     num_envs: int = 32
     total_frames: int = 100_000  # env steps of stage 2 (~ minutes on a 2-core CPU)
+    # the action std every student acts with, held fixed (not trained): the same exploration
+    # for LEGO-H and the baselines. The walker oracle acting with this much noise kept all
+    # its robots up for 20 s at 0.1, 97 % at 0.2, 84 % at 0.3, 25 % at 0.5 (docs/unified.md)
+    init_noise_std: float = 0.2
+    # no value clipping: the critic starts from the oracle's, whose values sit ~30 above this
+    # stage's returns (measured); clipped, it would close that gap 0.2 an update
+    clip_value: bool = False
     lr: float = 5e-4
+    # before the first iteration the oracle acts alone this many frames and the prior takes
+    # prior_pretrain_steps steps on its actions (0: no pre-training; legoh/train/prior.py)
+    prior_pretrain_frames: int = 4096
+    prior_pretrain_steps: int = 300
     vae_steps: int = 4  # prior updates on the oracle's actions per iteration (alternating)
     vae_lr: float = 1e-3
     # HLM triplet margin (cosine distance; docs/hlm.md). The masked negative of an exact copy
     # of the oracle's action lands ~0.03-0.12 away, so with 0.2 the term never reaches zero
     hlm_margin: float = 0.2
     distill_epochs: int = 2  # passes of the imitation losses over each batch (in minibatches)
-    oracle_checkpoint: str | None = None  # None: train one first (oracle_frames), or reuse it
+    # DAgger's mixture: the teacher's action is executed on a share beta of the steps,
+    # 1 at the first iteration, 0 from this many on (linear; 0: off). legoh/train/dagger.py
+    dagger_mix_iterations: int = 0
+    # None: the robot's shipped oracle (pretrained/), else one trained first (oracle_frames)
+    # or reused; pretrained: the shipped one
+    oracle_checkpoint: str | None = None
     oracle_frames: int = 200_000  # budget of the oracle trained when none is given
-    pn_distance: float = 1.0  # weight of Table 6's point-navigation term (this stage only)
+    # the navigation reward of this stage. paper: -0.75 d a step (-0.33 at the spawn vs
+    # +0.04 for the walker's whole reward) made an early fall the best return (measured,
+    # docs/unified.md); progress pays for the path covered, so a fall forfeits reward
+    nav_reward: NavReward = NavReward.progress
+    pn_progress: float = 1.0  # weight per m/s of progress (0.8 m/s: +0.016 a step)
+    # weight of the reach bonus (1 x weight x dt, once: the reach ends the episode): 250
+    # pays 5, above the ~4 of walking reward (0.04 a step, gamma 0.99) a reach forgoes
+    pn_reach: float = 250.0
+    pn_distance: float = 1.0  # weight of Table 6's point-navigation term (nav_reward=paper)
     depth_far: float | None = None  # m: clip depth nearer than the camera's far plane (EP-H: 2)
     weights: LossWeights = field(default_factory=LossWeights)

@@ -8,7 +8,9 @@ def table6_weights() -> dict[str, float]:
     """Reward weights of appendix Table 6, the ``table6`` preset (the robot-specific column
     comes from robot.table6_weights).
 
-    ``pn_distance`` (point-navigation distance) is used by the unified stage only: 0 here.
+    ``pn_distance`` (point-navigation distance) is used by the unified stage only: 0 here,
+    as are that stage's progress form (``pn_progress``, ``pn_line_progress``, ``pn_reach``;
+    ``algo.nav_reward``, docs/unified.md).
     """
     return {
         "tracking_goal_vel": 10.0,
@@ -28,6 +30,9 @@ def table6_weights() -> dict[str, float]:
         "feet_air_time": 1.0,
         "base_height": -100.0,
         "pn_distance": 0.0,
+        "pn_progress": 0.0,
+        "pn_line_progress": 0.0,
+        "pn_reach": 0.0,
         "dof_pos_limits": 0.0,
         # legged_gym's termination term (Cassie: -200), per fall x dt, paid after the clip:
         # without the clip and this term our first 2M-frame study learned to dive at the goal
@@ -55,7 +60,10 @@ def walk_weights() -> dict[str, float]:
         "feet_contact_phase": 0.18,
         "feet_swing_height": -20.0,
         "feet_phase": 1.0,
-        "pn_distance": 0.0,
+        "pn_distance": 0.0,  # the unified stage's navigation terms (algo.nav_reward)
+        "pn_progress": 0.0,
+        "pn_line_progress": 0.0,
+        "pn_reach": 0.0,
         # unitree_rl_gym has no termination term: a fall forfeits the rest of the episode's
         # reward (-4 per fall kept our first walk attempt standing)
         "termination": 0.0,
@@ -89,6 +97,13 @@ def depth_backend(value: DepthBackend | str) -> DepthBackend:
                          f"{[b.value for b in DepthBackend]}") from None
 
 
+def depth_window(cfg) -> list[int]:
+    """Indices into the last ``cfg.history`` frames (oldest first, newest last) of the frames
+    a student sees: the newest and every ``cfg.stride``-th before it, oldest first."""
+    newest = cfg.history - 1
+    return list(range(newest, -1, -cfg.stride))[::-1]
+
+
 @dataclass
 class DepthConfig:
     """Egocentric depth input: the one home of the image's size and far plane (the camera's
@@ -99,10 +114,23 @@ class DepthConfig:
     # cheaper a frame; multiray: MuJoCo's exact ray cast, the reference (docs/env.md)
     backend: DepthBackend = DepthBackend.raymarch
     every: int = 5  # policy steps between frames (10 Hz at 50 Hz)
-    frames: int = 4  # frame history length
+    # the frames a student sees: of the last ``history`` frames, every ``stride``-th counting
+    # back from the newest (depth_window). The paper's 16 sub-sampled to 4: 0, 0.5, 1.0 and
+    # 1.5 s old at 10 Hz
+    history: int = 16
+    stride: int = 5
     width: int = 32  # pixels: the cost of depth grows with pixels (experiments/bench_env.py)
     height: int = 24  # pixels
     far: float = 3.0  # m: range clip; frames are depth / far - 0.5
+
+
+class WaypointPass(StrEnum):
+    """When an expert waypoint counts as passed (``env.waypoint_pass``)."""
+
+    radius = "radius"  # within env.waypoint_radius of it (the oracle's, Extreme Parkour's)
+    # also once past it along the path: beyond the line through it square to the segment
+    # that leads to it. A robot passing beside one is not labelled back toward it
+    past = "past"
 
 
 class Schedule(StrEnum):
@@ -193,6 +221,9 @@ class EnvConfig:
     action_clip: float = 20.0
     goal_speed: float = 0.8  # m/s, the speed the goal-velocity reward asks for
     waypoint_radius: float = 0.6  # m: an expert waypoint counts as passed within this
+    # radius: passed only within waypoint_radius; past: also once beyond it along the path
+    # (stage 2 trains with past, docs/unified.md; evaluations use radius)
+    waypoint_pass: WaypointPass = WaypointPass.radius
     reach_radius: float = 0.5  # m: terminus reached in training (evaluation: eval.reach_radius)
     max_roll: float = 0.8  # rad, pose check
     max_pitch: float = 1.0  # rad, pose check

@@ -79,11 +79,13 @@ RANGES: list[tuple[str, Range]] = [
     ("algo.weights.c_*", FRACTION), ("algo.weights.*", NON_NEGATIVE),
     ("algo.desired_kl", NON_NEGATIVE), ("algo.entropy_coef", NON_NEGATIVE),
     ("algo.value_coef", NON_NEGATIVE), ("algo.hlm_margin", NON_NEGATIVE),
-    ("algo.pn_distance", ANY),  # a reward weight: signed like env.rewards
+    ("algo.pn_*", ANY),  # reward weights: signed like env.rewards
     ("algo.lr", POSITIVE), ("algo.adaptation_lr", POSITIVE), ("algo.vae_lr", POSITIVE),
     ("algo.clip_epsilon", POSITIVE), ("algo.init_noise_std", POSITIVE),
     ("algo.tanh_bound", POSITIVE), ("algo.max_grad_norm", POSITIVE),
     ("algo.depth_far", POSITIVE),
+    ("algo.prior_pretrain_*", NON_NEGATIVE),  # 0: no pre-training of the prior
+    ("algo.dagger_mix_iterations", NON_NEGATIVE),  # 0: the student always acts
     ("algo.*", COUNT),  # num_envs, steps, frames, epochs, minibatches, every-N, threads
     # eval
     ("eval.seconds", POSITIVE), ("eval.levels", NON_NEGATIVE), ("eval.seed", NON_NEGATIVE),
@@ -97,7 +99,8 @@ RANGES: list[tuple[str, Range]] = [
     # env
     ("env.rewards.*", ANY),
     ("env.history", COUNT), ("env.depth.every", COUNT),
-    ("env.depth.frames", COUNT), ("env.depth.width", COUNT), ("env.depth.height", COUNT),
+    ("env.depth.history", COUNT), ("env.depth.stride", COUNT),
+    ("env.depth.width", COUNT), ("env.depth.height", COUNT),
     ("env.randomization.pool_size", COUNT),
     ("env.min_base_height", FRACTION), ("env.command.zero_prob", FRACTION),
     ("env.gait.stance", FRACTION),

@@ -25,7 +25,16 @@ from torchrl.envs import EnvBase
 from legoh import keys
 from legoh.config import EnvConfig, RobotConfig, SimConfig, TrailConfig
 from legoh.envs.mdp import events, observations, rewards
-from legoh.envs.mdp.state import AirTime, Goals, Grid, Memory, TrailTable, as_index, compute_state
+from legoh.envs.mdp.state import (
+    AirTime,
+    Goals,
+    Grid,
+    Memory,
+    NavProgress,
+    TrailTable,
+    as_index,
+    compute_state,
+)
 from legoh.envs.mdp.terminations import TERMINATIONS, Outcome, check_terminations
 from legoh.envs.physics import make_physics, physics_device, sim_options
 from legoh.envs.randomization import draw_physics
@@ -125,13 +134,14 @@ class HikingEnv(EnvBase):
                                                self.num_actions, dev, dt)
         self.memory = Memory(n, self.num_actions, joints, dev, dt)
         self.air_time = AirTime(n, self.num_feet, self.dt, dev, dt)
-        self.goals = Goals(n, self.trails_t, c.waypoint_radius, dev)
+        self.goals = Goals(n, self.trails_t, c.waypoint_radius, dev, c.waypoint_pass)
+        self.nav_progress = NavProgress(n, dev, dt)
         self.command = events.Command(n, c.command, c.goal_speed, self.evaluation, dev, dt)
         self.proprio_dim = 3 + 3 + 3 * self.num_actions + 3 + 2
         self.history = observations.ProprioHistory(n, c.history, self.proprio_dim, dev)
         self.depth = observations.DepthFrames(n, c.depth, dev)
         self.stateful = [self.action_delay, self.memory, self.air_time, self.goals,
-                         self.command, self.history]
+                         self.nav_progress, self.command, self.history]
         self.observation_terms = observations.observation_table(self)
         self.reward_parts = {k: torch.zeros(n, device=dev) for k in self.reward_terms}
 

@@ -1,23 +1,28 @@
-"""Studies: gather a multirun sweep's jobs into one paper-style table (mean ± std over seeds).
+"""Studies: gather a multirun sweep's jobs into paper-style tables, overall and per trail
+category, mean ± std over evaluation runs.
 
 A sweep (``python run.py -m +experiment=<study>``) leaves one folder per job, each with its
 composed config (``.hydra/config.yaml``), its benchmark (``benchmark.csv``, written by
-:func:`legoh.eval.benchmark.evaluate`) and its training log (``train.csv``). Jobs are grouped
-by a config key (the method: ``algo.name``; or ``robot.name``); each job's overall benchmark
-row (already a mean over its evaluation runs) is one sample, and the table gives mean ± std
-over the group's jobs (seeds).
+:func:`legoh.eval.benchmark.evaluate`: per category and overall, the mean and sample std of
+each metric over the job's ``eval.runs`` evaluation runs) and its training log
+(``train.csv``). Jobs are grouped by a config key (the method: ``algo.name``; or
+``robot.name``). A group's row pools the evaluation runs of all its jobs (seeds): the
+paper's ± is over its 5 evaluation runs, not over training seeds, so one job's row is its
+own benchmark row, and several jobs' rows are the mean and sample std over all their runs,
+rebuilt exactly from each job's run count, mean and std (:func:`pool`).
 """
 
 from __future__ import annotations
 
 import csv
 import json
+import math
 from pathlib import Path
 
 import numpy as np
 from omegaconf import OmegaConf
 
-from legoh.eval.metrics import METRICS, column_title, summarize, to_markdown, write_csv
+from legoh.eval.metrics import METRICS, column_title, to_markdown
 
 STUDIES = {  # study -> the config key that names a row of its table
     "ablation_temporal": "algo.name",
@@ -28,14 +33,45 @@ STUDIES = {  # study -> the config key that names a row of its table
 }
 
 
-def read_overall(path: str | Path, row: str = "overall") -> dict[str, float]:
-    """The mean of each metric in ``row`` of a ``benchmark.csv``; NaN for a metric the file
-    lacks (one written before DW existed), so old sweeps still gather."""
+def read_rows(path: str | Path) -> dict[str, dict[str, tuple[float, float]]]:
+    """Every category row (and ``overall``) of a ``benchmark.csv``: ``{row: {metric: (mean,
+    std over its runs)}}``; per-level rows are left out. NaN for a metric the file lacks (one
+    written before DW existed), so old sweeps still gather."""
+    rows = {}
     with Path(path).open(newline="", encoding="utf-8") as f:
         for rec in csv.DictReader(f):
-            if rec["category"] == row:
-                return {m: float(rec.get(f"{column_title(m)} mean", "nan")) for m in METRICS}
-    raise KeyError(f"{path} has no row {row!r}")
+            if rec["category"].startswith("level "):
+                continue
+            rows[rec["category"]] = {m: (float(rec.get(f"{column_title(m)} mean", "nan")),
+                                         float(rec.get(f"{column_title(m)} std", "nan")))
+                                     for m in METRICS}
+    if "overall" not in rows:
+        raise KeyError(f"{path} has no row 'overall'")
+    return rows
+
+
+def read_overall(path: str | Path, row: str = "overall") -> dict[str, float]:
+    """The mean of each metric in ``row`` of a ``benchmark.csv``."""
+    rows = read_rows(path)
+    if row not in rows:
+        raise KeyError(f"{path} has no row {row!r}")
+    return {m: mean for m, (mean, _) in rows[row].items()}
+
+
+def pool(samples: list[tuple[int, float, float]]) -> tuple[float, float, int]:
+    """(mean, sample std, runs) over the runs of several jobs, each given as (runs, mean,
+    sample std over them): exact for the pooled runs, since each job's std (ddof=1, as
+    :func:`legoh.eval.metrics.summarize` gives it) and mean fix its sum of squares. Jobs
+    with a NaN mean (no run had the metric: T2R with no success) are left out; a NaN std
+    with one run counts as 0."""
+    kept = [(n, m, 0.0 if n == 1 or math.isnan(s) else s) for n, m, s in samples
+            if n > 0 and not math.isnan(m)]
+    total = sum(n for n, _, _ in kept)
+    if total == 0:
+        return float("nan"), float("nan"), 0
+    mean = sum(n * m for n, m, _ in kept) / total
+    squares = sum((n - 1) * s**2 + n * (m - mean) ** 2 for n, m, s in kept)
+    return mean, (math.sqrt(squares / (total - 1)) if total > 1 else 0.0), total
 
 
 def training_rate(path: str | Path) -> tuple[float, int]:
@@ -49,7 +85,9 @@ def training_rate(path: str | Path) -> tuple[float, int]:
 def gather(sweep_dir: str | Path, group_by: str = "algo.name") -> dict[str, list[dict]]:
     """``{label: [job, ...]}`` for every finished job (one with a benchmark) of a sweep.
 
-    A job is ``{"dir", "seed", "metrics", "frames", "frames_per_s"}``; jobs without a
+    A job is ``{"dir", "seed", "runs", "rows", "metrics", "frames", "frames_per_s",
+    "iterations"}``: ``rows`` every category row of its benchmark (:func:`read_rows`),
+    ``metrics`` the overall means, ``runs`` its ``eval.runs``. Jobs without a
     ``benchmark.csv`` (unfinished) are skipped.
     """
     groups: dict[str, list[dict]] = {}
@@ -62,8 +100,11 @@ def gather(sweep_dir: str | Path, group_by: str = "algo.name") -> dict[str, list
         label = str(OmegaConf.select(cfg, group_by))
         rate, iters = training_rate(job / "train.csv") if (job / "train.csv").is_file() \
             else (float("nan"), 0)
+        rows = read_rows(bench)
         groups.setdefault(label, []).append({
-            "dir": str(job), "seed": int(cfg.seed), "metrics": read_overall(bench),
+            "dir": str(job), "seed": int(cfg.seed),
+            "runs": int(OmegaConf.select(cfg, "eval.runs", default=1)), "rows": rows,
+            "metrics": {m: mean for m, (mean, _) in rows["overall"].items()},
             "frames": int(cfg.algo.total_frames), "frames_per_s": rate,
             "iterations": iters})
     if not groups:
@@ -71,27 +112,73 @@ def gather(sweep_dir: str | Path, group_by: str = "algo.name") -> dict[str, list
     return groups
 
 
+def group_row(jobs: list[dict], row: str) -> dict[str, tuple[float, float]] | None:
+    """Row ``row`` (a category or ``overall``) of a group: each metric pooled over the
+    evaluation runs of its jobs (:func:`pool`); None when no job has that row."""
+    have = [j for j in jobs if row in j["rows"]]
+    if not have:
+        return None
+    return {m: pool([(j["runs"], *j["rows"][row][m]) for j in have])[:2] for m in METRICS}
+
+
+def study_rows(groups: dict[str, list[dict]]) -> dict[str, dict[str, dict]]:
+    """``{row: {label: {metric: (mean, std)}}}``: ``overall`` first, then each category
+    in the order the jobs' benchmarks list them."""
+    names = ["overall"]
+    for jobs in groups.values():
+        for job in jobs:
+            names += [r for r in job["rows"] if r not in names]
+    table = {}
+    for name in names:
+        rows = {label: group_row(jobs, name) for label, jobs in groups.items()}
+        table[name] = {label: row for label, row in rows.items() if row is not None}
+    return table
+
+
+def write_study_csv(path: Path, table: dict[str, dict[str, dict]], label: str) -> Path:
+    """One CSV of every row: ``label``, ``category``, then each metric's mean and std."""
+    header = [label, "category"] + [f"{column_title(m)} {s}" for m in METRICS
+                                    for s in ("mean", "std")]
+    with path.open("w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f)
+        w.writerow(header)
+        for category, rows in table.items():
+            for name, stats in rows.items():
+                w.writerow([name, category, *(repr(float(v)) for m in METRICS
+                                              for v in stats[m])])
+    return path
+
+
 def study_table(sweep_dir: str | Path, out_dir: str | Path, study: str,
                 group_by: str | None = None) -> dict[str, Path]:
-    """Write ``table.md``, ``table.csv`` and ``summary.json`` for a sweep to ``out_dir``."""
+    """Write ``table.md`` (overall, then one table per trail category), ``table.csv`` (every
+    row), ``table.png`` (overall) and ``summary.json`` for a sweep to ``out_dir``."""
     group_by = group_by or STUDIES.get(study, "algo.name")
     groups = gather(sweep_dir, group_by)
-    rows = {label: summarize([j["metrics"] for j in jobs]) for label, jobs in groups.items()}
+    table = study_rows(groups)
     seeds = sorted({j["seed"] for jobs in groups.values() for j in jobs})
     frames = sorted({j["frames"] for jobs in groups.values() for j in jobs})
+    runs = {label: sum(j["runs"] for j in jobs) for label, jobs in groups.items()}
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    title = (f"{study}: mean ± std over seeds {seeds} (stage-2 frames per job: "
-             f"{', '.join(map(str, frames))})")
-    lines = [to_markdown(rows, "Method" if group_by == "algo.name" else "Robot", title), "",
-             "| Method | jobs | training frames/s (median) |", "|---|---|---|"]
+    name = "Method" if group_by == "algo.name" else "Robot"
+    title = (f"{study}: mean ± std over evaluation runs (per row: "
+             f"{', '.join(f'{k} {v}' for k, v in runs.items())}; training seeds {seeds}; "
+             f"stage-2 frames per job: {', '.join(map(str, frames))})")
+    lines = [to_markdown(table["overall"], name, title), ""]
+    for category, rows in table.items():
+        if category != "overall":
+            lines += [to_markdown(rows, name, f"{study}, category {category}"), ""]
+    lines += [f"| {name} | jobs | evaluation runs | training frames/s (median) |",
+              "|---|---|---|---|"]
     for label, jobs in groups.items():
         rate = np.nanmedian([j["frames_per_s"] for j in jobs])
-        lines.append(f"| {label} | {len(jobs)} | {rate:.0f} |")
+        lines.append(f"| {label} | {len(jobs)} | {runs[label]} | {rate:.0f} |")
     paths = {"markdown": out / "table.md", "csv": out / "table.csv",
-             "summary": out / "summary.json", "plot": plot_study(rows, out / "table.png", title)}
+             "summary": out / "summary.json",
+             "plot": plot_study(table["overall"], out / "table.png", title)}
     paths["markdown"].write_text("\n".join(lines) + "\n", encoding="utf-8")
-    write_csv(paths["csv"], rows, label=group_by)
+    write_study_csv(paths["csv"], table, group_by)
     paths["summary"].write_text(json.dumps({"study": study, "group_by": group_by,
                                             "groups": groups}, indent=2), encoding="utf-8")
     return paths

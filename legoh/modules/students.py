@@ -307,16 +307,20 @@ class NavigationModule(TensorDictModuleBase):
 
 def make_locomotion_actor(dims: StudentDims, nav_dim: int, action_dim: int,
                           action_bound: float, hidden: tuple[int, ...] = (512, 256, 128),
-                          init_std: float = 0.5, min_std: float = 1e-4) -> ProbabilisticActor:
+                          init_std: float = 0.5, min_std: float = 1e-4,
+                          learn_std: bool = True) -> ProbabilisticActor:
     """The locomotion module: proprioception, z_uni and the navigation goal in, a diagonal
-    Normal over joint actions out (the oracle actor's MLP shape and distribution).
+    Normal over joint actions out (the oracle actor's MLP shape and distribution); its
+    state-independent std starts at ``init_std`` and is a constant unless ``learn_std``.
 
     Reads ``PROPRIO`` (B, P), ``STUDENT_LATENT`` (B, 32), ``NAV_GOAL`` (B, nav_dim);
     writes ``LOC``/``SCALE`` (B, A), ``"action"`` (B, A) and ``"sample_log_prob"`` (B,).
     """
     body = ConcatMLP([dims.proprio, LATENT_DIM, nav_dim], [1, 1, 1], hidden, action_dim, None)
-    head = TensorDictModule(GaussianPolicyHead(body, action_dim, action_bound, init_std, min_std),
-                            [keys.PROPRIO, keys.STUDENT_LATENT, keys.NAV_GOAL], [LOC, SCALE])
+    gaussian = GaussianPolicyHead(body, action_dim, action_bound, init_std, min_std)
+    gaussian.std.requires_grad_(learn_std)
+    head = TensorDictModule(gaussian, [keys.PROPRIO, keys.STUDENT_LATENT, keys.NAV_GOAL],
+                            [LOC, SCALE])
     return ProbabilisticActor(head, in_keys={"loc": LOC, "scale": SCALE}, out_keys=[keys.ACTION],
                               distribution_class=IndependentNormal,
                               distribution_kwargs={"tanh_loc": False}, return_log_prob=True,
@@ -344,10 +348,12 @@ class Student:
 
 
 def make_student(name: str, dims: StudentDims, action_dim: int, action_bound: float,
-                 preset: str = "small", core: str = "gru", init_std: float = 0.5) -> Student:
+                 preset: str = "small", core: str = "gru", init_std: float = 0.5,
+                 learn_std: bool = True) -> Student:
     """Student ``name`` (``lego_h``, ``ep_h``, ``rma_b``, ``rma_h``) for these input sizes."""
     nav = make_navigator(name, dims, preset, core)
-    loco = make_locomotion_actor(dims, nav.nav_dim, action_dim, action_bound, init_std=init_std)
+    loco = make_locomotion_actor(dims, nav.nav_dim, action_dim, action_bound, init_std=init_std,
+                                 learn_std=learn_std)
     return Student(NavigationModule(nav), loco, dims, name)
 
 

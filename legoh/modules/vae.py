@@ -163,6 +163,37 @@ class ActionVAE(nn.Module):
             *(ResidualFC(cfg.hidden) for _ in range(cfg.blocks)),
             nn.Linear(cfg.hidden, num_joints),
         )
+        # per-joint centre and spread of the raw actions (to_unit); none until fit_action_range
+        self.register_buffer("center", torch.zeros(num_joints))
+        self.register_buffer("spread", torch.ones(num_joints))
+
+    def to_unit(self, actions: Tensor, bound: float) -> Tensor:
+        """Raw actions (B..., J) -> [0, 1]: ``normalize_actions((a - center) / spread,
+        bound)``; with no fitted range, ``normalize_actions(a, bound)``."""
+        return normalize_actions((actions - self.center) / self.spread, bound)
+
+    def from_unit(self, actions01: Tensor, bound: float) -> Tensor:
+        """The inverse of :meth:`to_unit` (inside the range): [0, 1] -> raw actions."""
+        return self.center + self.spread * bound * (2.0 * actions01 - 1.0)
+
+    @torch.no_grad()
+    def fit_action_range(self, actions: Tensor, bound: float, sigmas: float = 3.0) -> None:
+        """Centre each joint on its mean over ``actions`` (B, J) and scale it so that
+        ``sigmas`` standard deviations either side fill [0, 1]. A walking policy's actions
+        span a few % of the env's clip range (H1 walker: std 0.25-2.1 against a clip of
+        20): normalised by the clip alone, the VAE learned no more than each joint's mean
+        (docs/hlm.md)."""
+        check_actions(actions, self.num_joints)
+        flat = actions.reshape(-1, self.num_joints).to(self.center)
+        self.center.copy_(flat.mean(0))
+        std = flat.std(0) if flat.shape[0] > 1 else torch.ones_like(self.spread)
+        self.spread.copy_((sigmas * std / bound).clamp_min(1e-6))
+
+    def _load_from_state_dict(self, state_dict, prefix, *args, **kwargs) -> None:
+        """Checkpoints from before the fitted range: no centre, unit spread."""
+        state_dict.setdefault(prefix + "center", torch.zeros_like(self.center))
+        state_dict.setdefault(prefix + "spread", torch.ones_like(self.spread))
+        super()._load_from_state_dict(state_dict, prefix, *args, **kwargs)
 
     def encode(self, actions01: Tensor, mask: Tensor | None = None) -> tuple[Tensor, Tensor]:
         """(B..., J) in [0, 1], mask (B..., J) bool (True = hidden) -> mu, logvar (B..., latent)."""

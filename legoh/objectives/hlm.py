@@ -26,7 +26,7 @@ from torch import Tensor
 from torchrl.objectives import LossModule
 
 from legoh.keys import ACTION, TEACHER_ACTION
-from legoh.modules.vae import ActionVAE, check_actions, normalize_actions, random_joint_mask
+from legoh.modules.vae import ActionVAE, check_actions, random_joint_mask
 
 HLM_MARGIN = 0.2  # cosine-distance margin of the triplet loss (ours; distances lie in [0, 2])
 
@@ -38,7 +38,9 @@ def _cosine_distance(a: Tensor, b: Tensor) -> Tensor:
 
 def vae_loss(vae: ActionVAE, oracle_action: Tensor, bound: float,
              generator: torch.Generator | None = None) -> TensorDict:
-    """The VAE's own loss on a batch of oracle actions (B..., J) in [-bound, bound].
+    """The VAE's own loss on a batch of oracle actions (B..., J) in [-bound, bound]
+    (normalised by :meth:`ActionVAE.to_unit`: centred and scaled per joint once the VAE's
+    action range is fitted).
 
     The target is always the full normalised oracle action. A masked VAE (``vae.cfg.masked``)
     sees, for a ``cfg.masked_rows`` share of rows, a copy with ``cfg.mask_ratio`` of the joints
@@ -54,7 +56,7 @@ def vae_loss(vae: ActionVAE, oracle_action: Tensor, bound: float,
     """
     cfg = vae.cfg
     check_actions(oracle_action, vae.num_joints, "oracle_action")
-    target = normalize_actions(oracle_action.detach(), bound).reshape(-1, vae.num_joints)
+    target = vae.to_unit(oracle_action.detach(), bound).reshape(-1, vae.num_joints)
     rows = target.shape[0]
     mask = torch.zeros_like(target, dtype=torch.bool)
     if cfg.masked:
@@ -90,7 +92,8 @@ def frozen_encode(vae: ActionVAE, actions01: Tensor, mask: Tensor | None = None)
 def hlm_loss(vae: ActionVAE, oracle_action: Tensor, student_action: Tensor, bound: float,
              c_mt: float = 0.85, c_ms: float = 0.15, margin: float = HLM_MARGIN,
              generator: torch.Generator | None = None) -> TensorDict:
-    """HLM on (B..., J) raw actions in [-bound, bound]; the VAE stays frozen.
+    """HLM on (B..., J) raw actions in [-bound, bound] (normalised by the VAE's
+    :meth:`~legoh.modules.vae.ActionVAE.to_unit`); the VAE stays frozen.
 
     The frozen encoder's means embed the oracle action (anchor, no gradient), the student
     action (positive) and a copy of the student action with ``vae.cfg.mask_ratio`` of its
@@ -113,8 +116,8 @@ def hlm_loss(vae: ActionVAE, oracle_action: Tensor, student_action: Tensor, boun
     if oracle_action.shape != student_action.shape:
         raise ValueError(f"oracle_action {tuple(oracle_action.shape)} and student_action "
                          f"{tuple(student_action.shape)} differ in shape")
-    oracle = normalize_actions(oracle_action.detach(), bound).reshape(-1, j)
-    student = normalize_actions(student_action, bound).reshape(-1, j)
+    oracle = vae.to_unit(oracle_action.detach(), bound).reshape(-1, j)
+    student = vae.to_unit(student_action, bound).reshape(-1, j)
     mask = random_joint_mask(student.shape[0], j, vae.cfg.mask_ratio, generator, student.device)
     with torch.no_grad():
         anchor = frozen_encode(vae, oracle)

@@ -74,10 +74,12 @@ class OnePassGAE:
 
 
 def make_ppo(actor, critic, cfg: OracleConfig) -> tuple[ClipPPOLoss, OnePassGAE]:
-    """ClipPPOLoss (advantages normalised per minibatch) and GAE over the critic."""
+    """ClipPPOLoss (advantages normalised per minibatch, values clipped when
+    ``cfg.clip_value``) and GAE over the critic."""
     loss = KeepDistPPOLoss(actor, critic, clip_epsilon=cfg.clip_epsilon,
                            entropy_coeff=cfg.entropy_coef, critic_coeff=cfg.value_coef,
-                           loss_critic_type="l2", clip_value=True, normalize_advantage=True)
+                           loss_critic_type="l2", clip_value=bool(cfg.clip_value),
+                           normalize_advantage=True)
     loss.set_keys(sample_log_prob="sample_log_prob")
     return loss, OnePassGAE(critic, cfg.gamma, cfg.gae_lambda)
 

@@ -10,6 +10,7 @@ the imitation losses (action, latent, goals, HLM) update the whole student throu
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import hashlib
 import time
@@ -23,19 +24,24 @@ from torchrl.envs import Compose, EnvBase, InitTracker, TensorDictPrimer, Transf
 
 from legoh import keys
 from legoh.checkpoint import CheckpointError, load_checkpoint
-from legoh.config.algo import OracleConfig
+from legoh.config.algo import NavReward, OracleConfig
+from legoh.config.env import CommandConfig, DepthConfig, WaypointPass
 from legoh.envs.hiking_env import make_env
 from legoh.modules.actor_critic import LOC, OracleInputDims
 from legoh.modules.students import Student, StudentDims, make_student, unroll
 from legoh.objectives.distill import distillation_loss
 from legoh.objectives.ppo import make_ppo, ppo_update
-from legoh.runs import GracefulStop, resume_command
+from legoh.runs import GracefulStop, RunFolderBusy, resume_command, wait_for_run
+from legoh.train.dagger import TeacherMix, student_rows, teacher_share
 from legoh.train.oracle import (
     build_oracle,
     load_oracle_checkpoint,
     oracle_net_config,
+    pretrained_path,
+    resolve_checkpoint,
     train_oracle,
 )
+from legoh.train.prior import make_prior, pretrain_prior, train_prior
 from legoh.train.runner import OnPolicyRunner, training_session
 
 
@@ -71,17 +77,42 @@ def oracle_artefact_dir(cfg: DictConfig) -> Path:
     return Path(cfg.artefacts) / f"oracle-{cfg.robot.name}-{cfg.trail.name}-{digest}"
 
 
+def shipped_oracle(robot: str) -> Path | None:
+    """``pretrained/<robot>_oracle.pt`` when the repository ships one, else None."""
+    try:
+        return pretrained_path(robot)
+    except FileNotFoundError:
+        return None
+
+
 def ensure_oracle(cfg: DictConfig) -> Path:
-    """The oracle checkpoint for this run: ``algo.oracle_checkpoint`` when given; else the
-    artefact of a previous run with the same stage-1 config (resumed if it was killed);
-    else one trained now with the small budget ``algo.oracle_frames``."""
+    """The oracle checkpoint for this run: ``algo.oracle_checkpoint`` when given
+    (``pretrained``: the robot's shipped one); else the robot's shipped oracle when there is
+    one; else the artefact of a previous run with the same stage-1 config (resumed if it was
+    killed); else one trained now with the small budget ``algo.oracle_frames``."""
     if cfg.algo.oracle_checkpoint:
-        return Path(cfg.algo.oracle_checkpoint)
+        return resolve_checkpoint(str(cfg.algo.oracle_checkpoint), cfg.robot.name)
+    shipped = shipped_oracle(cfg.robot.name)
+    if shipped is not None:
+        print(f"[legoh] teacher: the shipped oracle {shipped} (another: "
+              f"algo.oracle_checkpoint=PATH)")
+        return shipped
     out = oracle_artefact_dir(cfg)
     ckpt, done = out / "oracle.pt", out / "DONE"
-    if done.is_file() and ckpt.is_file():
-        print(f"[legoh] reusing the oracle at {ckpt}")
-        return ckpt
+    while True:
+        wait_for_run(out)  # a job of the same sweep training this oracle: read it after
+        if done.is_file() and ckpt.is_file():
+            print(f"[legoh] reusing the oracle at {ckpt}")
+            return ckpt
+        try:
+            return _train_artefact_oracle(cfg, out)
+        except RunFolderBusy:  # another job took the folder first: wait for it, then read
+            continue
+
+
+def _train_artefact_oracle(cfg: DictConfig, out: Path) -> Path:
+    """Train (or resume) the small oracle of ``cfg`` in ``out``, then mark it ``DONE``."""
+    ckpt = out / "oracle.pt"
     stage1 = oracle_config(cfg)
     resume = str(ckpt) if ckpt.is_file() else None
     print(f"[legoh] no oracle given: training one ({stage1.algo.total_frames} frames) in {out}")
@@ -89,7 +120,7 @@ def ensure_oracle(cfg: DictConfig) -> Path:
     (out / "config.yaml").write_text(OmegaConf.to_yaml(stage1, resolve=True))
     hint = f"{resume_command(None)}   # the same command: it resumes the oracle in {out}"
     run = train_oracle(stage1, out, resume=resume, resume_hint=hint)
-    done.write_text(f"{run.iterations} iterations\n")
+    (out / "DONE").write_text(f"{run.iterations} iterations\n")
     return run.checkpoint
 
 
@@ -105,16 +136,46 @@ def load_oracle(cfg: DictConfig, path: Path, env: EnvBase):
 
 
 # ----------------------------------------------------------------------------- env
-def student_env_overrides(cfg: DictConfig) -> dict:
-    """Env settings of stage 2: depth on (unless the student is blind), the unified
-    stage's point-navigation reward (Table 6, *), the student's depth range."""
+def nav_reward_weights(algo) -> dict[str, float]:
+    """The weights of this stage's navigation terms (``algo.nav_reward``), over
+    ``env.rewards``: the progress form (progress toward the terminus + the reach bonus)
+    or the paper's point-navigation distance. The other forms' terms get 0."""
+    form = NavReward(str(getattr(algo.nav_reward, "value", algo.nav_reward)))
+    weights = dict.fromkeys(("pn_distance", "pn_progress", "pn_line_progress", "pn_reach"), 0.0)
+    if form == NavReward.paper:
+        weights["pn_distance"] = float(algo.pn_distance)
+    else:
+        term = "pn_progress" if form == NavReward.progress else "pn_line_progress"
+        weights[term] = float(algo.pn_progress)
+        weights["pn_reach"] = float(algo.pn_reach)
+    return weights
+
+
+def student_command(cfg: DictConfig) -> CommandConfig:
+    """The forward-speed command of stage 2: the evaluation's, ``env.goal_speed`` for every
+    episode, never zero. The oracle reads the command and the student cannot see it, so a
+    drawn one would make the labels depend on an input the student has no way to infer."""
+    command = OmegaConf.to_object(cfg.env.command)  # a CommandConfig
+    speed = float(cfg.env.goal_speed)
+    return dataclasses.replace(command, speed=[speed, speed], zero_prob=0.0)
+
+
+def student_env_overrides(cfg: DictConfig, evaluation: bool = False) -> dict:
+    """Env settings of stage 2: depth on (unless the student is blind), the stage's
+    navigation reward (:func:`nav_reward_weights`), the student's depth range, the
+    evaluation's speed command (:func:`student_command`); in training, waypoints pass
+    once the robot is past them (``env.waypoint_pass=past``: the oracle's labels do not
+    turn a robot back to a waypoint it walked by). Evaluations keep ``env.waypoint_pass``
+    (radius), so a student's TR and TC count as its oracle's do."""
     depth = OmegaConf.to_object(cfg.env.depth)  # a DepthConfig
     depth.enabled = cfg.algo.student != "rma_b"
     if cfg.algo.depth_far is not None:
         depth.far = float(cfg.algo.depth_far)
-    rewards = dict(cfg.env.rewards)
-    rewards["pn_distance"] = float(cfg.algo.pn_distance)
-    return {"depth": depth, "rewards": rewards}
+    rewards = {**dict(cfg.env.rewards), **nav_reward_weights(cfg.algo)}
+    out = {"depth": depth, "rewards": rewards, "command": student_command(cfg)}
+    if not evaluation:
+        out["waypoint_pass"] = WaypointPass.past
+    return out
 
 
 def wrap_student_env(env: EnvBase, state_spec) -> TransformedEnv:
@@ -130,7 +191,7 @@ def make_student_env(cfg: DictConfig, num_envs: int, state_shapes: tuple, evalua
 
     state_shape, held_dim = state_shapes
     env = make_env(cfg, num_envs=num_envs, evaluation=evaluation,
-                   **{**student_env_overrides(cfg), **overrides})
+                   **{**student_env_overrides(cfg, evaluation), **overrides})
     spec = Composite({keys.NAV_STATE: Unbounded(shape=(num_envs, *state_shape)),
                       keys.NAV_HELD: Unbounded(shape=(num_envs, held_dim))},
                      shape=(num_envs,))
@@ -148,9 +209,10 @@ def build_student(cfg: DictConfig, env: EnvBase) -> Student:
     algo = cfg.algo
     far = algo.depth_far if algo.depth_far is not None else cfg.env.depth.far
     dims = StudentDims.from_spec(env.observation_spec, depth_far=float(far))
-    init_std = algo.init_noise_std if algo.ppo else 0.1  # distill-only students: little noise
+    # every student acts with the same fixed noise (docs/unified.md, "The same exploration")
     return make_student(algo.student, dims, env.action_spec.shape[-1], algo.tanh_bound,
-                        preset=algo.net, core=algo.core, init_std=init_std)
+                        preset=algo.net, core=algo.core, init_std=algo.init_noise_std,
+                        learn_std=False)
 
 
 def load_student(cfg: DictConfig, path: str | Path, student: Student) -> dict:
@@ -164,58 +226,6 @@ def load_student(cfg: DictConfig, path: str | Path, student: Student) -> dict:
     for name, module in student.modules().items():
         module.load_state_dict(state["models"][name])
     return state
-
-
-# ----------------------------------------------------------------------------- prior
-def make_prior(cfg: DictConfig, action_dim: int):
-    """The action prior of ``algo.prior``: (VAE or None, its optimiser, the HLM loss)."""
-    prior = cfg.algo.prior
-    if prior == "none":
-        return None, None, None
-    if prior not in ("hlm", "vae"):
-        raise ValueError(f"unknown algo.prior {prior!r}; choose one of ['hlm', 'vae', 'none']")
-    from legoh.modules.vae import ActionVAE, ActionVAEConfig
-
-    vae = ActionVAE(action_dim, ActionVAEConfig(masked=prior == "hlm"))
-    optim = torch.optim.Adam(vae.parameters(), lr=cfg.algo.vae_lr)
-    w = cfg.algo.weights
-    bound = cfg.env.action_clip
-    loss = functools.partial(_prior_loss, vae, bound, w.c_mt, w.c_ms, cfg.algo.hlm_margin,
-                             prior)
-    return vae, optim, loss
-
-
-def _prior_loss(vae, bound, c_mt, c_ms, margin, prior, teacher, student):
-    """HLM's terms (masked VAE); with the vanilla VAE only the latent similarity remains:
-    a vanilla VAE has no masked negative, so the triplet term has nothing to push away."""
-    from legoh.objectives.hlm import hlm_loss
-
-    out = hlm_loss(vae, teacher, student, bound, c_mt=c_mt, c_ms=c_ms, margin=margin)
-    if prior == "vae":
-        out = out.exclude(*[k for k in out.keys() if "triplet" in k])
-    return out
-
-
-def train_prior(vae, optim, teacher: torch.Tensor, cfg: DictConfig,
-                gen: torch.Generator) -> dict[str, float]:
-    """``algo.vae_steps`` minibatch steps of the prior on the oracle's actions (alternating
-    with distillation, as the paper trains HLM's VAE)."""
-    from legoh.objectives.hlm import vae_loss
-
-    w = cfg.algo.weights
-    stats: dict[str, float] = {}
-    size = max(1, teacher.shape[0] // cfg.algo.minibatches)
-    vae.requires_grad_(True)
-    for _ in range(cfg.algo.vae_steps):
-        idx = torch.randint(0, teacher.shape[0], (size,), generator=gen)
-        out = vae_loss(vae, teacher[idx], cfg.env.action_clip, generator=gen)
-        total = w.w5 * out["loss_recon"] + w.w6 * out["loss_kl"]
-        optim.zero_grad()
-        total.backward()
-        optim.step()
-        stats = {f"prior/{k}": float(v.detach()) for k, v in out.items() if v.numel() == 1}
-    vae.requires_grad_(False)  # frozen while it scores the student
-    return stats
 
 
 # ----------------------------------------------------------------------------- loop
@@ -298,6 +308,21 @@ def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None,
     if resume:
         runner.resume(load_student(cfg, resume, student))
         print(f"[legoh] resumed from {resume} at iteration {runner.iteration}")
+    elif vae is not None and algo.prior_pretrain_frames > 0:
+        rollout_env = make_env(cfg, algo.num_envs, **{**student_env_overrides(cfg),
+                                                       "depth": DepthConfig()})  # no frames
+        out = pretrain_prior(vae, vae_optim, rollout_env, oracle, cfg, gen)
+        rollout_env.close()
+        print(f"[legoh] action prior pre-trained on {out['actions']} of the oracle's actions "
+              f"({algo.prior_pretrain_steps} steps): reconstruction error "
+              f"{out['recon_error_before']:.3f} -> {out['recon_error_after']:.3f} (each "
+              f"joint's mean: {out['recon_error_mean_guess']:.3f})")
+
+    policy, mix, done = student.policy, None, [runner.iteration]  # done: updates so far
+    if algo.dagger_mix_iterations > 0:
+        mix = TeacherMix(student.policy, oracle)
+        mix.beta.fill_(teacher_share(runner.iteration, algo.dagger_mix_iterations))
+        policy = mix
 
     def update(batch) -> dict:
         clock = {"labels": time.perf_counter()}
@@ -310,17 +335,24 @@ def _train_student(cfg: DictConfig, out_dir: Path, resume: str | None,
         clock["prior"] = time.perf_counter()
         if algo.ppo and algo.weights.w1:
             gae(batch)
-            stats.update(ppo_update(loss, ppo_optim, batch.reshape(-1), algo, gen,
-                                    scale=algo.weights.w1, lagged=bool(cfg.collector.overlap)))
+            acted = student_rows(batch)  # DAgger's mixture: PPO learns from the student's steps
+            if acted.shape[0] >= algo.minibatches:
+                stats.update(ppo_update(loss, ppo_optim, acted, algo, gen, scale=algo.weights.w1,
+                                        lagged=bool(cfg.collector.overlap)))
         clock["ppo"] = time.perf_counter()
         stats.update(distill(student, batch, cfg, distill_optim, prior_loss, gen))
         clock["distill"] = time.perf_counter()
+        if mix is not None:
+            stats["dagger/beta"] = float(mix.beta)
+            stats["dagger/teacher_acted"] = float(batch.get(keys.TEACHER_ACTED).float().mean())
+            done[0] += 1  # the next batch is collected with the next iteration's share
+            mix.beta.fill_(teacher_share(done[0], algo.dagger_mix_iterations))
         marks = list(clock.items())
         stats.update({f"time/{k}": t1 - t0 for (_, t0), (k, t1) in zip(marks[:-1], marks[1:],
                                                                         strict=True)})
         return stats
 
-    it = runner.learn(student.policy, functools.partial(make_student_env, cfg,
+    it = runner.learn(policy, functools.partial(make_student_env, cfg,
                                                           state_shapes=shapes),
                       update, stop, resume,
                       postfix=lambda s: {"imit": f"{s.get('distill/loss_action', np.nan):.3f}"})

@@ -142,12 +142,17 @@ def expert_goals(env, obs: dict) -> torch.Tensor:
 
 
 class DepthFrames:
-    """The last ``frames`` depth images (N, T, H, W), normalised to [-0.5, 0.5] (0.5: far),
-    and whether a new one arrived on this step (N,)."""
+    """The last ``cfg.history`` depth images (N, history, H, W), normalised to [-0.5, 0.5]
+    (0.5: far), whether a new one arrived on this step (N,), and the frames observed:
+    ``depth_window(cfg)`` of them (N, T, H, W), oldest first (the paper's 16 frames
+    sub-sampled to 4, 0.5 s apart at 10 Hz)."""
 
     def __init__(self, n: int, cfg, device: torch.device) -> None:
+        from legoh.config.env import depth_window
+
         self.far = cfg.far
-        self.buf = torch.zeros(n, cfg.frames, cfg.height, cfg.width, device=device)
+        self.buf = torch.zeros(n, cfg.history, cfg.height, cfg.width, device=device)
+        self.window = torch.tensor(depth_window(cfg), device=device)
         self.fresh = torch.zeros(n, dtype=torch.bool, device=device)
 
     def render(self, env, ids: torch.Tensor | None = None) -> torch.Tensor:
@@ -171,7 +176,7 @@ class DepthFrames:
         self.fresh[ids] = True
 
     def __call__(self, env, obs: dict) -> torch.Tensor:
-        return self.buf
+        return self.buf[:, self.window]
 
 
 def depth_fresh(env, obs: dict) -> torch.Tensor:

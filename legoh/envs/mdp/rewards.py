@@ -152,6 +152,27 @@ def pn_distance(s: StepState, radius: float) -> torch.Tensor:
 
 
 @reward_term
+def pn_progress(s: StepState) -> torch.Tensor:
+    """m/s by which the remaining expert path to the terminus shrank this step (unified
+    stage): the gain of the potential -(path left), so a run's sum is the path it covered."""
+    return s.path_progress
+
+
+@reward_term
+def pn_line_progress(s: StepState) -> torch.Tensor:
+    """m/s by which the straight-line distance to the terminus shrank this step."""
+    return s.line_progress
+
+
+@reward_term
+def pn_reach(s: StepState, radius: float) -> torch.Tensor:
+    """1 within the reach radius of the terminus, else 0: Table 6's point-navigation bonus
+    without its distance penalty (the reach ends the episode, so it is paid once)."""
+    dist = torch.linalg.vector_norm(s.terminus_xy - s.base_xy, dim=1)
+    return (dist < radius).to(s.yaw.dtype)
+
+
+@reward_term
 def dof_pos_limits(s: StepState) -> torch.Tensor:
     """sum of how far joints are outside their range (rad)."""
     low, high = s.joint_range[:, 0], s.joint_range[:, 1]
@@ -240,6 +261,7 @@ def term_params(cfg, target_height: float, reach_radius: float) -> dict[str, dic
         "feet_edge": {"min_level": cfg.edge_min_level},
         "base_height": {"target": target_height},
         "pn_distance": {"radius": reach_radius},
+        "pn_reach": {"radius": reach_radius},
     }
 
 

@@ -62,6 +62,10 @@ class StepState:
     feet_height: torch.Tensor  # (N, F) m: foot lift above its standing height
     swing_target: torch.Tensor  # (N, F) m: the lift the gait clock asks for now
     advance: torch.Tensor  # (N,) bool: whose observation history takes this state
+    # (N,) m/s: how fast the remaining expert path / the straight line to the terminus
+    # shrank over this step (0 on a reset); ``NavProgress`` keeps the bookkeeping
+    path_progress: torch.Tensor
+    line_progress: torch.Tensor
     # (N,) bool: the episode ended in a failure on this step; the step sets it from the
     # termination table (mdp.terminations) before the rewards read it
     failed: torch.Tensor
@@ -211,16 +215,21 @@ class Memory:
 
 
 class Goals:
-    """Index of each env's current expert waypoint, advanced when the robot passes it.
+    """Index of each env's current expert waypoint, advanced when the robot passes it:
+    within ``radius`` of it, or (``rule="past"``) also once beyond it along the path, past
+    the line through it square to the segment that leads to it (from the previous waypoint,
+    or the trail start).
 
     ``start`` (N,) is the index an episode begins with: 0 at the trail start; the spawn
     event sets it to the next waypoint when it puts a robot on the trail
     (``env.spawn_remaining``), before :meth:`reset` copies it into ``index``.
     """
 
-    def __init__(self, n: int, trails: TrailTable, radius: float, device: torch.device
-                 ) -> None:
-        self.trails, self.radius = trails, radius
+    def __init__(self, n: int, trails: TrailTable, radius: float, device: torch.device,
+                 rule: str = "radius") -> None:
+        if str(rule) not in ("radius", "past"):
+            raise ValueError(f"env.waypoint_pass={rule!r}: choose radius or past")
+        self.trails, self.radius, self.past = trails, radius, str(rule) == "past"
         self.index = torch.zeros(n, dtype=torch.int64, device=device)
         self.start = torch.zeros(n, dtype=torch.int64, device=device)
         self.tile = torch.zeros(n, dtype=torch.int64, device=device)
@@ -238,8 +247,23 @@ class Goals:
         return self.trails.waypoints[self.tile[:, None], idx]
 
     def advance(self, base_xy: torch.Tensor) -> None:
-        near = torch.linalg.vector_norm(self.ahead(0) - base_xy, dim=1) < self.radius
-        self.index = self.index + (near & (self.index < self.last())).long()
+        """Move past the current waypoint those robots (base xy (N, 2)) that passed it."""
+        here = self.ahead(0)
+        passed = torch.linalg.vector_norm(here - base_xy, dim=1) < self.radius
+        if self.past:
+            t = self.trails
+            before = torch.where((self.index > 0)[:, None],
+                                 t.waypoints[self.tile, (self.index - 1).clamp(min=0)],
+                                 t.start[self.tile, :2])
+            passed |= ((base_xy - here) * (here - before)).sum(1) > 0
+        self.index = self.index + (passed & (self.index < self.last())).long()
+
+    def remaining(self, xy: torch.Tensor) -> torch.Tensor:
+        """Metres (N,) of expert path from points ``xy`` (N, 2) to the terminus: straight
+        to the current waypoint, then along the waypoints."""
+        t = self.trails
+        to_wp = torch.linalg.vector_norm(t.waypoints[self.tile, self.index] - xy, dim=1)
+        return to_wp + t.length[self.tile] - t.cum_length[self.tile, self.index]
 
     def progress(self, base_xy: torch.Tensor) -> torch.Tensor:
         """Fraction (N,) of the trail covered: path length to the current waypoint minus the
@@ -251,6 +275,37 @@ class Goals:
 
     def reset(self, ids: torch.Tensor) -> None:
         self.index[ids] = self.start[ids]
+
+
+class NavProgress:
+    """Where each robot stood on the last step, so the step can say how much nearer the
+    terminus it got: along the remaining expert path (both ends measured through the
+    *current* waypoint, so passing a waypoint is no jump) and in a straight line."""
+
+    def __init__(self, n: int, device: torch.device, dtype: torch.dtype) -> None:
+        self.last_xy = torch.zeros(n, 2, device=device, dtype=dtype)
+        self.fresh = torch.ones(n, dtype=torch.bool, device=device)  # no last position yet
+
+    def start(self, xy: torch.Tensor) -> None:
+        """After a reset: the fresh rows' spawn positions (N, 2) become their last ones."""
+        self.last_xy = torch.where(self.fresh[:, None], xy, self.last_xy)
+        self.fresh[:] = False
+
+    def update(self, goals: Goals, terminus_xy: torch.Tensor, xy: torch.Tensor, dt: float
+               ) -> tuple[torch.Tensor, torch.Tensor]:
+        """(path, line) progress (N,) each, m/s, for base positions ``xy`` (N, 2) after
+        ``goals`` advanced; rows reset within this step (a diverged sim) get 0."""
+        def line(p: torch.Tensor) -> torch.Tensor:
+            return torch.linalg.vector_norm(terminus_xy - p, dim=1)
+
+        path = (goals.remaining(self.last_xy) - goals.remaining(xy)) / dt
+        straight = (line(self.last_xy) - line(xy)) / dt
+        path, straight = (torch.where(self.fresh, 0.0, v) for v in (path, straight))
+        self.last_xy, self.fresh = xy.clone(), torch.zeros_like(self.fresh)
+        return path, straight
+
+    def reset(self, ids: torch.Tensor) -> None:
+        self.fresh[ids] = True
 
 
 def gait_phase(steps: torch.Tensor, dt: float, period: float, feet: int) -> torch.Tensor:
@@ -275,13 +330,17 @@ def compute_state(env, action: torch.Tensor | None = None) -> StepState:
     force = forces.gather(1, strongest[:, None, :, None].expand(-1, 1, -1, 3))[:, 0]
     feet = sd[:, -1, sl.feet_pos].reshape(n, nf, 3)
     mem = env.memory
+    terminus = env.trails_t.terminus[env.goals.tile]
     if action is None:
         first = torch.zeros_like(in_contact)
         air = torch.zeros_like(env.air_time.time)
         action, last_action = mem.action, mem.action
+        env.nav_progress.start(pos[:, :2])
+        path_rate = line_rate = torch.zeros_like(pos[:, 0])
     else:
         first, air = env.air_time.update(in_contact)
         env.goals.advance(pos[:, :2])
+        path_rate, line_rate = env.nav_progress.update(env.goals, terminus, pos[:, :2], env.dt)
         last_action = mem.action
     command = env.command.update(env.goals.ahead(0), pos, yaw)
     xy = torch.cat([pos[:, None, :2], feet[..., :2]], 1)  # base, then feet
@@ -305,7 +364,7 @@ def compute_state(env, action: torch.Tensor | None = None) -> StepState:
         last_dof_vel=mem.dof_vel, default_pose=env.default_pose,
         joint_range=env.joint_range, hip_idx=env.hip_idx,
         torques=torques, last_torques=mem.torques, action=action, last_action=last_action,
-        waypoint_xy=env.goals.ahead(0), terminus_xy=env.trails_t.terminus[env.goals.tile],
+        waypoint_xy=env.goals.ahead(0), terminus_xy=terminus,
         terminus_local=goals[:, 0], middle_local=goals[:, 1],
         feet_force=force, feet_contact=in_contact, first_contact=first, air_time=air,
         feet_on_edge=in_contact & env.edges.nearest(feet[..., :2]),
@@ -313,5 +372,6 @@ def compute_state(env, action: torch.Tensor | None = None) -> StepState:
         level=env.level, command=command, phase=phase, stance=stance,
         feet_height=feet[..., 2] - ground[:, 1:] - env.feet_rest_height,
         swing_target=target, advance=torch.ones(n, dtype=torch.bool, device=pos.device),
+        path_progress=path_rate, line_progress=line_rate,
         failed=torch.zeros(n, dtype=torch.bool, device=pos.device),
     )

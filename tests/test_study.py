@@ -1,0 +1,60 @@
+"""Study tables from sweep folders: per-category rows, and a std over evaluation runs (the
+paper's ± is over 5 evaluation runs), pooled exactly over a method's jobs. Job folders are
+written by hand here: a benchmark.csv of known per-run values and a .hydra/config.yaml."""
+
+import math
+
+import numpy as np
+import pytest
+from omegaconf import OmegaConf
+
+from legoh.eval.metrics import METRICS, summarize, write_csv
+from legoh.eval.study import pool, study_table
+
+
+def write_job(folder, algo: str, seed: int, runs: dict[str, list[dict]]) -> None:
+    """A finished job: ``runs`` maps a row (category, overall) to its per-run metrics."""
+    (folder / ".hydra").mkdir(parents=True)
+    cfg = {"seed": seed, "algo": {"name": algo, "total_frames": 1000},
+           "eval": {"runs": len(runs["overall"])}}
+    (folder / ".hydra" / "config.yaml").write_text(OmegaConf.to_yaml(cfg))
+    rows = {row: summarize(values) for row, values in runs.items()}
+    rows["level 0"] = rows["overall"]  # per-level rows are not categories
+    write_csv(folder / "benchmark.csv", rows, label="category")
+
+
+def per_run(sr: list[float]) -> list[dict]:
+    return [{m: (v if m == "SR" else 1.0) for m in METRICS} for v in sr]
+
+
+def test_pool_is_the_std_over_all_runs() -> None:
+    a, b = [10.0, 20.0, 30.0], [40.0, 60.0]
+    mean, std, n = pool([(3, np.mean(a), np.std(a, ddof=1)), (2, np.mean(b), np.std(b, ddof=1))])
+    assert n == 5 and mean == pytest.approx(np.mean(a + b))
+    assert std == pytest.approx(np.std(a + b, ddof=1))
+    assert pool([(1, 5.0, float("nan"))])[:2] == (5.0, 0.0)
+    assert math.isnan(pool([(2, float("nan"), float("nan"))])[0])
+
+
+def test_the_table_has_category_rows_and_a_std_over_evaluation_runs(tmp_path) -> None:
+    """Failed before: only the overall row was read, and the std was over the jobs' means
+    (seeds): here 2 jobs of 3 runs each give a std over the 6 runs."""
+    sweep = tmp_path / "multirun"
+    sr = {0: {"forest": [10.0, 20.0, 30.0], "gap": [0.0, 0.0, 30.0]},
+          1: {"forest": [40.0, 50.0, 60.0], "gap": [30.0, 30.0, 30.0]}}
+    for seed in (0, 1):
+        overall = [(f + g) / 2 for f, g in zip(sr[seed]["forest"], sr[seed]["gap"],
+                                               strict=True)]
+        write_job(sweep / f"unified-seed{seed}", "unified", seed,
+                  {"forest": per_run(sr[seed]["forest"]), "gap": per_run(sr[seed]["gap"]),
+                   "overall": per_run(overall)})
+    paths = study_table(sweep, tmp_path / "table", "plugin_hlm")
+    text = paths["markdown"].read_text()
+    assert "category forest" in text and "category gap" in text and "level 0" not in text
+    forest = sr[0]["forest"] + sr[1]["forest"]
+    cell = f"{np.mean(forest):.2f} ± {np.std(forest, ddof=1):.2f}"
+    assert cell in text  # 35.00 ± 18.71; over the seeds' means it was 35.00 ± 21.21
+    assert "unified 6" in text  # evaluation runs pooled in each row
+    csv_rows = paths["csv"].read_text().splitlines()
+    assert csv_rows[0].startswith("algo.name,category,")
+    assert {r.split(",")[1] for r in csv_rows[1:]} == {"overall", "forest", "gap"}
