@@ -171,6 +171,9 @@ def _rollout(*overrides: str):
 
 
 def _fixed_batch(*overrides: str):
+    # exact comparisons: float32 unless a test asks otherwise (auto picks bfloat16 on AMX)
+    if not any(o.startswith("algo.update_precision=") for o in overrides):
+        overrides = ("algo.update_precision=float32", *overrides)
     cfg, actor, _, loss, gae, batch = _rollout("env.only_positive_rewards=false", *overrides)
     gae(batch)
     return cfg, actor, loss, batch.reshape(-1)
