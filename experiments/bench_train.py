@@ -9,7 +9,8 @@ Per batch size N, in one run (these machines are noisy, so compare within a run)
               float32 and with ``algo.update_precision=bfloat16`` (autocast);
   loop:       the real training loop (``train_oracle``), frames/s of its iterations after
               the first, in three settings:
-                default: float32 update, collection and update take turns in one process;
+                default: the default config (update_precision=auto: bfloat16 on AMX /
+                         AVX512-BF16 CPUs), collection and update take turns in one process;
                 fast:    ``algo.update_precision=bfloat16 collector.overlap=true`` (autocast
                          update; the next batch is collected in a worker process while the
                          learner updates);
