@@ -121,6 +121,10 @@ CASES: dict[str, tuple[dict, list[float], str]] = {
         {"command": rows([0.5, 0.0], [0.5, 0.0]),
          "lin_vel_world": rows([0.5, 0.0, 0.0], [0.0, 0.0, 0.0])},
         [1.0, np.exp(-1.0)], "1 at the commanded speed, exp(-err^2 / sigma) off it"),
+    "tracking_waypoint_vel": (
+        {"command": rows([0.5, 0.0], [0.5, 0.0]), "waypoint_xy": rows([5.0, 0.0], [5.0, 0.0]),
+         "lin_vel_world": rows([0.5, 0.0, 0.0], [0.0, 0.5, 0.0])},
+        [1.0, np.exp(-2.0)], "1 at the commanded speed toward the waypoint; sideways pays little"),
     "tracking_ang_vel": (
         {"command": rows([0.0, 0.5], [0.0, 0.5]),
          "ang_vel_body": rows([0.0, 0.0, 0.5], [0.0, 0.0, 0.0])},
@@ -161,7 +165,8 @@ def test_neutral_state_has_no_penalty() -> None:
     state = neutral()
     # facing the goal; far from the terminus; on command (standing); alive; feet down as
     # the (standing) clock asks
-    bonuses = {"tracking_yaw", "pn_distance", "tracking_lin_vel", "tracking_ang_vel", "alive",
+    bonuses = {"tracking_yaw", "pn_distance", "tracking_lin_vel", "tracking_waypoint_vel",
+               "tracking_ang_vel", "alive",
                "feet_contact_phase", "feet_phase"}
     for name in REWARD_TERMS:
         if name not in bonuses:

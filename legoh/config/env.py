@@ -46,6 +46,9 @@ def walk_weights() -> dict[str, float]:
     Where each term departs from Table 6 and the curves that chose it: docs/oracle.md."""
     return {
         "tracking_lin_vel": 1.0,
+        # the same kernel toward the next waypoint (0 here: learn_walk's walkers were trained
+        # without it; the hiking recipe swaps tracking_lin_vel for it, docs/oracle.md)
+        "tracking_waypoint_vel": 0.0,
         "tracking_ang_vel": 0.5,
         "alive": 0.15,
         "lin_vel_z": -2.0,

@@ -190,6 +190,17 @@ def tracking_lin_vel(s: StepState, sigma: float) -> torch.Tensor:
 
 
 @reward_term
+def tracking_waypoint_vel(s: StepState, sigma: float) -> torch.Tensor:
+    """exp(-|v_xy - v_cmd * dir_to_waypoint|^2 / sigma), world frame: the commanded speed
+    toward the next expert waypoint. tracking_lin_vel asks for the speed along the robot's
+    own heading, which a robot walking in circles earns too (the first hiking run learned
+    that: safe from ditches and gaps, paid for walking; docs/oracle.md)."""
+    direction, _ = _to_waypoint(s)
+    err = s.lin_vel_world[:, :2] - s.command[:, :1] * direction
+    return torch.exp(-(err**2).sum(1) / sigma)
+
+
+@reward_term
 def tracking_ang_vel(s: StepState, sigma: float) -> torch.Tensor:
     """exp(-(w_cmd - w_z)^2 / sigma): the yaw rate that steers toward the next goal."""
     return torch.exp(-((s.ang_vel_body[:, 2] - s.command[:, 1]) ** 2) / sigma)
@@ -254,6 +265,7 @@ def term_params(cfg, target_height: float, reach_radius: float) -> dict[str, dic
     return {
         "tracking_goal_vel": {"speed": cfg.goal_speed},
         "tracking_lin_vel": {"sigma": cfg.tracking_sigma},
+        "tracking_waypoint_vel": {"sigma": cfg.tracking_sigma},
         "tracking_ang_vel": {"sigma": cfg.tracking_sigma},
         "feet_air_time": {"target": cfg.air_time_target},
         "feet_swing_height": {"height": cfg.gait.swing_height},
