@@ -1,4 +1,5 @@
-"""mode=play: a policy's episode rendered headless (EGL) to a video and a filmstrip."""
+"""mode=play: a policy's episode rendered headless (EGL) to a video and a filmstrip, and the
+renderer it films with (legoh/video.py: camera, trail markers, caption, depth view)."""
 
 import importlib.util
 import os
@@ -13,8 +14,9 @@ import torch
 from omegaconf import OmegaConf
 from tensordict.nn import TensorDictModule
 
-from legoh import keys, play
+from legoh import keys, play, video
 from legoh.envs.robots import build_robot_spec
+from legoh.eval.benchmark import make_eval_env
 from tests.conftest import compose_config
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -32,10 +34,10 @@ def test_play_mode_through_run_py_writes_video_and_filmstrip(tmp_path: Path) -> 
         env={**os.environ, "OMP_NUM_THREADS": "1"})
     assert proc.returncode == 0, proc.stderr[-3000:]
     ext = ".mp4" if importlib.util.find_spec("imageio_ffmpeg") else ".gif"
-    video, strip = out / f"play{ext}", out / "play_filmstrip.png"
-    assert video.stat().st_size > 0 and str(video) in proc.stdout and str(strip) in proc.stdout
+    clip, strip = out / f"play{ext}", out / "play_filmstrip.png"
+    assert clip.stat().st_size > 0 and str(clip) in proc.stdout and str(strip) in proc.stdout
     picture = imageio.imread(strip)
-    assert picture.shape[0] == play.HEIGHT and picture.shape[1] > play.WIDTH
+    assert picture.shape[0] == video.HEIGHT >= 480 and picture.shape[1] > video.WIDTH >= 640
     assert picture.std() > 0  # not a blank frame: the scene was drawn
 
 
@@ -54,13 +56,87 @@ def test_render_policy_video_of_a_standing_robot(tmp_path: Path) -> None:
     steps = round(cfg.eval.seconds * 50)  # 50 Hz policy
     assert result["frames"] == 1 + steps // play.RENDER_EVERY
     frames = imageio.mimread(result["video"])
-    assert len(frames) == result["frames"] and frames[0].shape[:2] == (play.HEIGHT,
-                                                                       play.WIDTH)
+    assert len(frames) == result["frames"] and frames[0].shape[:2] == (video.HEIGHT,
+                                                                       video.WIDTH)
     strip = imageio.imread(result["filmstrip"])
-    assert strip.shape[1] == play.FILMSTRIP_FRAMES * play.WIDTH
+    assert strip.shape[1] == video.FILMSTRIP_FRAMES * video.WIDTH
     assert not np.array_equal(frames[0], np.zeros_like(frames[0]))
 
 
 def test_play_refuses_a_student(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="oracle"):
         play.main(compose_config("algo=unified"), tmp_path)
+
+
+def _close_to(image: np.ndarray, rgb: tuple[float, float, float], tol: int = 40) -> int:
+    """Pixels of ``image`` within ``tol`` (0-255, every channel) of the colour ``rgb``."""
+    return int((np.abs(image.astype(int) - np.array(rgb) * 255).max(axis=-1) <= tol).sum())
+
+
+@pytest.fixture(scope="module")
+def filmed():
+    """A camera on robot 0 of a one-robot flat-trail eval env, and the env's model state."""
+    cfg = compose_config(*TINY)
+    env = make_eval_env(OmegaConf.merge(cfg, {"eval": {"robots": 1}}))
+    td = env.reset()
+    groups = env.scene.model.geom_group.copy()
+    tile = env.terrain.tiles[int(td[keys.TILE][0])]
+    camera = video.FollowCamera(
+        video.render_model(OmegaConf.to_object(cfg.robot), env.terrain, cfg.sim.dt,
+                           cfg.sim.hfield_chunk),
+        env.robot.base_body, tile, env.robot.nominal_base_height)
+    yield env, camera, tile, groups
+    camera.close()
+    env.close()
+
+
+def test_frame_draws_waypoints_and_the_terminus_flag(filmed) -> None:
+    """A frame is at least 640 x 480; at the trail's start the robot's current waypoint is
+    drawn yellow (the terminus, 22 m on, is not), and near the end its red flag shows; the
+    env's model is untouched (the camera renders a model of its own)."""
+    env, camera, tile, groups = filmed
+    qpos = env.sim.qpos[0].cpu().numpy().copy()
+    qpos[:2] = tile.start[:2]  # at the trail's start, 22 m from its terminus
+    frame = camera.frame(qpos, goal=0)
+    assert frame.shape == (video.HEIGHT, video.WIDTH, 3) and frame.shape[:2] >= (480, 640)
+    assert _close_to(frame, video.NEXT_WAYPOINT) > 20
+    assert _close_to(frame, video.FLAG, tol=60) == 0  # the terminus is out of view
+    camera.heading = None  # a jump: no smoothing from the last frame
+    qpos[:2] = tile.terminus[:2] - [3.0, 0.0]
+    near_end = camera.frame(qpos, goal=len(tile.waypoints) - 1)
+    assert _close_to(near_end, video.FLAG, tol=60) > 50
+    assert camera.model is not env.scene.model
+    np.testing.assert_array_equal(env.scene.model.geom_group, groups)
+
+
+def test_caption_and_depth_panel_are_burnt_in(filmed) -> None:
+    """The caption changes the frame's pixels (and differs with its text); a depth frame
+    adds the colour-mapped panel beside the view, brighter where it is near."""
+    env, camera, *_ = filmed
+    view = camera.frame(env.sim.qpos[0].cpu().numpy())
+    line = video.caption_line("h1", "flat", 0, 1.25, 0.4)
+    assert line.startswith("H1") and "flat" in line and "1.2 s" in line and "0.4 m" in line
+    captioned = video.compose(view, line)
+    assert captioned.shape == view.shape and not np.array_equal(captioned, view)
+    assert not np.array_equal(captioned, video.compose(view, video.caption_line(
+        "h1", "flat", 0, 2.5, 0.4)))
+    depth = np.full((24, 32), 0.5)  # normalised: everything at the far plane ...
+    depth[:, :16] = -0.5  # ... but the left half at 0 m
+    both = video.compose(view, line, depth, far=3.0)
+    assert both.shape == (video.HEIGHT, video.WIDTH + video.PANEL_WIDTH, 3)
+    np.testing.assert_array_equal(both[: video.HEIGHT - 40, : video.WIDTH],
+                                  captioned[: video.HEIGHT - 40])
+    panel = both[:, video.WIDTH:].astype(int).sum(axis=-1)
+    row = panel[video.HEIGHT // 3]
+    assert row[video.PANEL_WIDTH // 2 - 40] > row[video.PANEL_WIDTH // 2 + 40]
+
+
+def test_camera_heading_follows_the_trail_not_the_robot() -> None:
+    """Along a straight leg the heading is the leg's, wherever beside it the robot stands;
+    before a left bend it turns early (the chord to the point 2.5 m on); at the end it
+    keeps the last leg's."""
+    trail = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 10.0]])
+    assert video._trail_heading(trail, np.array([3.0, -2.0]), 2.5) == pytest.approx(0.0)
+    bend = video._trail_heading(trail, np.array([9.0, 0.0]), 2.5)
+    assert bend == pytest.approx(np.arctan2(1.5, 1.0))
+    assert video._trail_heading(trail, np.array([10.0, 12.0]), 2.5) == pytest.approx(np.pi / 2)

@@ -12,6 +12,7 @@ never needs a per-env call into MuJoCo.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import mujoco
@@ -172,8 +173,11 @@ def _sensor_slices(model: mujoco.MjModel, info: RobotInfo, unsafe: list[str]) ->
 
 
 def build_scene(robot_cfg: RobotConfig, terrain: TerrainMap, dt: float,
-                render: bool = False, hfield_chunk: float = 4.0) -> Scene:
-    """Robot + terrain map + sensors, compiled once."""
+                render: bool = False, hfield_chunk: float = 4.0,
+                decorate: Callable[[mujoco.MjSpec], None] | None = None) -> Scene:
+    """Robot + terrain map + sensors, compiled once. ``render`` keeps the robot's visual
+    meshes; ``decorate`` edits the spec last, before it is compiled (videos dress a
+    scene of their own with it: ``legoh/video.py``)."""
     spec, info = build_robot_spec(robot_cfg, render=render)
     for geom in spec.geoms:
         if geom.contype:  # robot friction wins contact pairs: per-env friction lives there
@@ -184,6 +188,8 @@ def build_scene(robot_cfg: RobotConfig, terrain: TerrainMap, dt: float,
     spec.worldbody.add_light(pos=[0.0, 0.0, 30.0], dir=[0.0, 0.0, -1.0],
                              type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL)
     spec.visual.global_.offwidth, spec.visual.global_.offheight = 1280, 960
+    if decorate is not None:
+        decorate(spec)
     model = spec.compile()
     slices = _sensor_slices(model, info, unsafe)
     qpos_adr = np.array([model.jnt_qposadr[model.joint(j).id] for j in info.actuated_joints])
