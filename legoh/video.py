@@ -58,6 +58,7 @@ BEHIND = 5.0  # m: nor those whose centre is farther than this behind it (out of
 TERRAIN_STRIDE = 2  # the video's ground keeps every 2nd height sample (0.05 -> 0.1 m)
 MESH_CELL = 0.012  # m: the robot's meshes merged to one vertex per cell (H1: 286k -> 23k faces)
 HIDDEN_GROUP = 5  # geom group the far world geoms are moved to (not drawn)
+SEE_THROUGH = 0.25  # alpha of a tree trunk standing between the camera and the robot
 FOG_START = 5.0  # m from the camera: the ground fades into the horizon from here
 SHADOW_SIZE = 1024  # px, the shadow map's side (MuJoCo's default 4096 costs ~3x a frame)
 SHADOW_BOX = 9.0  # m: half the side of the square around the robot where shadows fall
@@ -200,6 +201,7 @@ class FollowCamera:
         self.world = np.flatnonzero((model.geom_bodyid == 0)
                                     & (model.geom_type != mujoco.mjtGeom.mjGEOM_PLANE))
         self.groups = model.geom_group[self.world].copy()
+        self.trunks = self.world[model.geom_type[self.world] == mujoco.mjtGeom.mjGEOM_CYLINDER]
         self.renderer = mujoco.Renderer(model, height=height, width=width)
         self.renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = True
         self.renderer.scene.flags[mujoco.mjtRndFlag.mjRND_FOG] = True
@@ -239,9 +241,22 @@ class FollowCamera:
         behind = -offset @ np.array([np.cos(self.heading), np.sin(self.heading)])
         hide = (np.linalg.norm(offset, axis=1) > VIEW_RADIUS) | (behind > BEHIND)
         self.model.geom_group[self.world] = np.where(hide, HIDDEN_GROUP, self.groups)
+        self._see_through(base)
         self.renderer.update_scene(self.data, camera=self.cam, scene_option=self.option)
         self._draw_trail(self.renderer.scene, base, goal)
         return self.renderer.render().copy()
+
+    def _see_through(self, base: np.ndarray) -> None:
+        """Fade the tree trunks that stand between the camera and the robot (in xy)."""
+        reach = self.cam.distance * np.cos(np.radians(self.cam.elevation))
+        az = np.radians(self.cam.azimuth)
+        eye = self.aim[:2] - reach * np.array([np.cos(az), np.sin(az)])
+        seg = base[:2] - eye
+        xy = self.model.geom_pos[self.trunks, :2] - eye
+        t = np.clip(xy @ seg / max(float(seg @ seg), 1e-9), 0.0, 1.0)
+        gap = np.linalg.norm(xy - t[:, None] * seg, axis=1)
+        between = (gap < self.model.geom_size[self.trunks, 0] + 0.3) & (t < 0.9)
+        self.model.geom_rgba[self.trunks, 3] = np.where(between, SEE_THROUGH, 1.0)
 
     def _draw_trail(self, scene: mujoco.MjvScene, base: np.ndarray, goal: int) -> None:
         """The expert waypoints within ``VIEW_RADIUS`` as spheres and a flag on the

@@ -140,3 +140,30 @@ def test_camera_heading_follows_the_trail_not_the_robot() -> None:
     bend = video._trail_heading(trail, np.array([9.0, 0.0]), 2.5)
     assert bend == pytest.approx(np.arctan2(1.5, 1.0))
     assert video._trail_heading(trail, np.array([10.0, 12.0]), 2.5) == pytest.approx(np.pi / 2)
+
+
+def test_a_trunk_between_the_camera_and_the_robot_is_seen_through() -> None:
+    """Forest: with a trunk 1.8 m behind the robot (on the camera's side) it is drawn
+    faded; with the robot 1.8 m before it (the trunk ahead), it is solid again."""
+    cfg = compose_config("trail=forest", *TINY[1:])
+    env = make_eval_env(OmegaConf.merge(cfg, {"eval": {"robots": 1}}))
+    try:
+        tile = env.terrain.tiles[int(env.reset()[keys.TILE][0])]
+        camera = video.FollowCamera(
+            video.render_model(OmegaConf.to_object(cfg.robot), env.terrain, cfg.sim.dt,
+                               cfg.sim.hfield_chunk),
+            env.robot.base_body, tile, env.robot.nominal_base_height)
+        qpos = env.sim.qpos[0].cpu().numpy().copy()
+        trunk = camera.trunks[0]
+        for side in (1.8, -1.8):
+            for _ in range(4):  # the camera's heading depends on where the robot stands
+                az = np.radians(camera.cam.azimuth)
+                qpos[:2] = camera.model.geom_pos[trunk, :2] + side * np.array([np.cos(az),
+                                                                               np.sin(az)])
+                camera.heading = None
+                camera.frame(qpos)
+            assert camera.model.geom_rgba[trunk, 3] == pytest.approx(
+                video.SEE_THROUGH if side > 0 else 1.0)
+        camera.close()
+    finally:
+        env.close()
