@@ -5,6 +5,8 @@ from pathlib import Path
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
+from legoh.config.algo import Stage
+
 
 def run(cfg: DictConfig) -> None:
     """Run ``cfg.mode`` in the Hydra run's output folder (a resumed training run: in its
@@ -41,7 +43,7 @@ def train_and_evaluate(cfg: DictConfig, out_dir: Path) -> None:
     from legoh.eval.benchmark import evaluate
     from legoh.eval.curves import plot_learning_curve
 
-    if cfg.algo.name == "oracle":
+    if cfg.algo.stage == Stage.oracle:
         from legoh.train.oracle import train_oracle
 
         run = train_oracle(cfg, out_dir, resume=cfg.resume)
@@ -90,7 +92,7 @@ def export(cfg: DictConfig, out_dir: Path) -> Path:
     from legoh.eval.cli import build_student_policy
     from legoh.export import export_student
 
-    if cfg.algo.name == "oracle":
+    if cfg.algo.stage == Stage.oracle:
         raise ValueError("mode=export deploys a depth student (algo=unified, ep_h, ...); "
                          "the oracle needs privileged inputs a robot does not have")
     if not cfg.checkpoint:

@@ -26,6 +26,7 @@ from omegaconf import DictConfig, OmegaConf  # noqa: E402
 from torchrl.envs.utils import ExplorationType, set_exploration_type, step_mdp  # noqa: E402
 
 from legoh import keys  # noqa: E402
+from legoh.config.algo import Stage  # noqa: E402
 from legoh.eval.benchmark import make_eval_env  # noqa: E402
 from legoh.eval.metrics import distance_walked  # noqa: E402
 from legoh.threads import torch_threads  # noqa: E402
@@ -127,7 +128,7 @@ def main(cfg: DictConfig, out_dir: Path) -> dict:
     """``mode=play``: film ``checkpoint``'s oracle (the untrained one without it)."""
     from legoh.eval.cli import build_actor
 
-    if cfg.algo.name != "oracle":
+    if cfg.algo.stage != Stage.oracle:
         raise ValueError("mode=play films an oracle (algo=oracle): a student needs the "
                          "depth env of the benchmark, which this mode does not build")
     checkpoint = OmegaConf.select(cfg, "checkpoint", default=None)

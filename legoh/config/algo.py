@@ -12,6 +12,14 @@ class Precision(Enum):
     auto = "auto"  # bfloat16 where the learner's device runs it fast, else float32
 
 
+class Stage(StrEnum):
+    """Which training stage an algorithm config runs (``algo.stage``): what the entry points
+    dispatch on, so a variant may take any ``algo.name``."""
+
+    oracle = "oracle"  # stage 1: PPO on privileged inputs (legoh/train/oracle.py)
+    student = "student"  # stage 2: a depth student learned from an oracle (legoh/train/unified.py)
+
+
 class NavReward(StrEnum):
     """The unified stage's navigation reward (``algo.nav_reward``; docs/unified.md)."""
 
@@ -24,7 +32,8 @@ class NavReward(StrEnum):
 class OracleConfig:
     """Stage 1: PPO with privileged inputs. Defaults: Extreme Parkour / legged_gym (see docs)."""
 
-    name: str = "oracle"
+    name: str = "oracle"  # the variant's label: run folders, checkpoint file, tables
+    stage: Stage = Stage.oracle
     num_envs: int = 256  # robots the training env steps (its batch)
     steps_per_env: int = 24  # policy steps per env per iteration
     total_frames: int = 1_500_000  # env steps of the main job: ~10 min here, then the benchmark
@@ -86,6 +95,7 @@ class UnifiedConfig(OracleConfig):
     Inherits the PPO settings of the oracle stage (same meaning, same defaults)."""
 
     name: str = "unified"
+    stage: Stage = Stage.student
     # the students' update has not been measured in bfloat16 yet (issue "The unified student
     # hikes from vision"): float32 until it is
     update_precision: Precision = Precision.float32

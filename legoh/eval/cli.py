@@ -7,6 +7,7 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
+from legoh.config.algo import Stage
 from legoh.eval.benchmark import evaluate, make_eval_env
 from legoh.train.oracle import build_oracle, load_oracle_actor
 
@@ -15,7 +16,7 @@ def build_actor(cfg: DictConfig, checkpoint: str | None = None):
     """The policy of ``cfg.algo`` with the weights of ``checkpoint`` (its robot, observation
     layout and, for a student, its student type must match this config), and the env
     factory the benchmark needs for it (None: the plain evaluation env)."""
-    if cfg.algo.name != "oracle":
+    if cfg.algo.stage != Stage.oracle:
         return build_student_policy(cfg, checkpoint)
     env = make_eval_env(OmegaConf.merge(cfg, {"eval": {"robots": 1}}))
     try:
