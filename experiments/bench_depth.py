@@ -95,7 +95,7 @@ def make(robot: str, trail: str, n: int) -> tuple[HikingEnv, object]:
     cfg = compose_config(f"robot={robot}", f"trail={trail}", "env.curriculum.enabled=false")
     env = HikingEnv(OmegaConf.to_object(cfg.robot), OmegaConf.to_object(cfg.trail),
                     OmegaConf.to_object(cfg.env), OmegaConf.to_object(cfg.sim), n, seed=0)
-    env.level[:] = LEVEL
+    env.set_level(LEVEL)
     env.reset()
     return env, cfg
 

@@ -72,7 +72,7 @@ def env_rate(robot: str, n: int, depth: bool, steps: int, scene=None,
         env = HikingEnv(OmegaConf.to_object(cfg.robot), OmegaConf.to_object(cfg.trail),
                         OmegaConf.to_object(cfg.env), OmegaConf.to_object(cfg.sim), n, seed=0,
                         scene=scene)
-    env.level[:] = LEVEL
+    env.set_level(LEVEL)
     td = env.reset()
     gen = torch.Generator().manual_seed(0)
     for i in range(steps + 5):

@@ -70,7 +70,7 @@ def render_policy_video(cfg: DictConfig, actor, out_path: str | Path,
     if was_training:
         actor.eval()
     try:
-        env.level[:] = level
+        env.set_level(level)
         td = env.reset()
         start, tile = td[keys.BASE_POS].cpu().numpy().copy(), td[keys.TILE].cpu().numpy().copy()
         end, fell = start.copy(), np.zeros(robots, dtype=bool)

@@ -128,6 +128,16 @@ def test_proprio_layout(env: HikingEnv) -> None:
     assert p.shape[1] == start + 5 == env.proprio_dim
 
 
+def test_proprio_slices_by_name(env: HikingEnv) -> None:
+    """The slices readers take by name (the runner's logged joints) are the layout above."""
+    a, p = env.num_actions, env.proprio_dim
+    assert observations.proprio_slice("joint_pos", a) == slice(6, 6 + a)
+    assert observations.proprio_slice("last_action", a) == slice(6 + 2 * a, 6 + 3 * a)
+    assert observations.proprio_slice("gait_clock", a) == slice(p - 2, p)
+    with pytest.raises(KeyError, match="joint_pos"):
+        observations.proprio_slice("joint_position", a)
+
+
 # --------------------------------------------------------------------------- terrain
 def test_grid_lookups_match_the_numpy_reference() -> None:
     rng = np.random.default_rng(0)

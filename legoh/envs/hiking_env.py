@@ -264,6 +264,11 @@ class HikingEnv(EnvBase):
         return {"level": self.level.tolist(), "global_steps": int(self.global_steps),
                 "randomization": self.randomization.state()}
 
+    def set_level(self, level: int | torch.Tensor) -> None:
+        """Put every robot (an int) or each robot (an (N,) tensor) on terrain ``level``
+        from its next reset: how the benchmark and ``mode=play`` pick the difficulty."""
+        self.level[:] = torch.as_tensor(level, device=self.device)
+
     def load_curriculum_state(self, state: dict) -> None:
         """Set the schedule back to :meth:`curriculum_state`'s ``state`` (a checkpoint
         from before the gate has no ``randomization``: the gate starts closed)."""

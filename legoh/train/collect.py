@@ -182,21 +182,19 @@ def mirror_curriculum(collector: BaseCollector, env: EnvBase, batch) -> None:
     """
     if isinstance(collector, Collector):
         return
-    base = getattr(env, "base_env", env)  # the HikingEnv under a stage-2 TransformedEnv
     ramp, alive, ended = batch["next", keys.RANDOMIZATION][0, -1].tolist()
-    base.load_curriculum_state({
+    env.load_curriculum_state({  # a stage-2 TransformedEnv forwards to its HikingEnv
         "level": batch["next", keys.LEVEL][:, -1],
-        "global_steps": base.global_steps + int(batch.shape[-1]),
+        "global_steps": env.curriculum_state()["global_steps"] + int(batch.shape[-1]),
         "randomization": {"ramp": ramp, "alive": alive, "ended": ended}})
 
 
 def _worker_factories(make_env_fn, per_worker: int, workers: int, env: EnvBase | None
                       ) -> list[_WorkerEnv]:
     """One factory per worker; each carries its slice of ``env``'s curriculum (if given)."""
-    base = getattr(env, "base_env", env)
-    if base is None:
+    if env is None:
         return [_WorkerEnv(make_env_fn, per_worker) for _ in range(workers)]
-    state = base.curriculum_state()
+    state = env.curriculum_state()
     return [_WorkerEnv(make_env_fn, per_worker, {
         **state, "level": state["level"][i * per_worker:(i + 1) * per_worker]})
         for i in range(workers)]
@@ -215,5 +213,5 @@ class _WorkerEnv:
     def __call__(self) -> EnvBase:
         env = self.make_env_fn(self.num_envs)
         if self.curriculum is not None:
-            getattr(env, "base_env", env).load_curriculum_state(self.curriculum)
+            env.load_curriculum_state(self.curriculum)
         return env

@@ -76,16 +76,30 @@ def gait_clock(env) -> torch.Tensor:
     return torch.cat([torch.sin(clock), torch.cos(clock)], 1)
 
 
-# the order of ("obs", "proprio"); P = 3 + 3 + 3A + 3 + 2
-PROPRIO_TERMS: list[tuple[str, ObsFn]] = [
-    ("base_ang_vel", base_ang_vel), ("gravity", gravity), ("joint_pos", joint_pos),
-    ("joint_vel", joint_vel), ("last_action", last_action),
-    ("terminus", terminus_direction), ("gait_clock", gait_clock),
+PER_JOINT = -1  # a proprio term's width: one value per actuated joint (A)
+# the order of ("obs", "proprio") and each term's width; P = 3 + 3 + 3A + 3 + 2
+PROPRIO_TERMS: list[tuple[str, ObsFn, int]] = [
+    ("base_ang_vel", base_ang_vel, 3), ("gravity", gravity, 3),
+    ("joint_pos", joint_pos, PER_JOINT), ("joint_vel", joint_vel, PER_JOINT),
+    ("last_action", last_action, PER_JOINT),
+    ("terminus", terminus_direction, 3), ("gait_clock", gait_clock, 2),
 ]
 
 
 def proprio(env, obs: dict) -> torch.Tensor:
-    return torch.cat([fn(env) for _, fn in PROPRIO_TERMS], 1)
+    return torch.cat([fn(env) for _, fn, _ in PROPRIO_TERMS], 1)
+
+
+def proprio_slice(name: str, num_actions: int) -> slice:
+    """Where term ``name`` sits in ``("obs", "proprio")`` of a robot with ``num_actions``
+    actuated joints: readers take a term by name, not by a hard-coded offset."""
+    start = 0
+    for term, _, width in PROPRIO_TERMS:
+        width = num_actions if width == PER_JOINT else width
+        if term == name:
+            return slice(start, start + width)
+        start += width
+    raise KeyError(f"no proprio term {name!r}; the terms: {[t for t, _, _ in PROPRIO_TERMS]}")
 
 
 class ProprioHistory:
