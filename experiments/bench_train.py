@@ -5,8 +5,9 @@
 Per batch size N, in one run (these machines are noisy, so compare within a run):
   bare:       HikingEnv.step_and_maybe_reset with random actions (the ceiling);
   collection: torchrl's Collector with the oracle actor (N x steps_per_env frames a batch);
-  update:     GAE + the PPO epochs + the adaptation module on one collected batch, in
-              float32 and with ``algo.update_precision=bfloat16`` (autocast);
+  update:     ``OraclePPO.update`` (GAE + the PPO epochs + the adaptation module) on each
+              collected batch, in float32 and with ``algo.update_precision=bfloat16``
+              (autocast);
   loop:       the real training loop (``train_oracle``), frames/s of its iterations after
               the first, in three settings:
                 default: the default config (update_precision=auto: bfloat16 on AMX /
@@ -39,9 +40,7 @@ from torchrl.collectors import Collector  # noqa: E402
 from legoh.config.compose import compose_config  # noqa: E402
 from legoh.envs.hiking_env import make_env  # noqa: E402
 from legoh.eval.curves import read_columns  # noqa: E402
-from legoh.objectives.adaptation import adaptation_loss  # noqa: E402
-from legoh.objectives.ppo import make_ppo, ppo_update  # noqa: E402
-from legoh.train.oracle import build_oracle, train_oracle  # noqa: E402
+from legoh.train.oracle import OraclePPO, train_oracle  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 BF16, CRITIC256, EPOCHS3 = ("algo.update_precision=bfloat16", "algo.critic_hidden=[256,128,64]",
@@ -70,38 +69,28 @@ def bare_rate(env, steps: int) -> float:
 
 def collect_and_update(cfg, env, batches: int, precisions=("float32",)
                        ) -> tuple[float, list[float], object]:
-    """(collection frames/s, update frames/s per precision, last batch)."""
-    torch.manual_seed(0)
-    _, actor, critic, adaptation = build_oracle(env, cfg)
+    """(collection frames/s, update frames/s per precision, last batch): the real
+    :meth:`OraclePPO.update`, one algorithm per precision, each on every batch."""
+    algorithms = {}
+    for p in precisions:
+        torch.manual_seed(0)  # the same initial networks for each precision
+        algorithms[p] = OraclePPO(OmegaConf.merge(cfg, {"algo": {"update_precision": p}}), env,
+                                  device=torch.device("cpu"))
     frames = cfg.algo.num_envs * cfg.algo.steps_per_env
-    collector = Collector(env, actor, frames_per_batch=frames, total_frames=frames * batches,
-                          auto_register_policy_transforms=False)
-    loss, gae = make_ppo(actor, critic, cfg.algo)
-    opt = torch.optim.Adam(loss.parameters(), lr=cfg.algo.lr)
-    aopt = torch.optim.Adam(adaptation.parameters(), lr=1e-3)
+    collector = Collector(env, algorithms[precisions[0]].policy, frames_per_batch=frames,
+                          total_frames=frames * batches, auto_register_policy_transforms=False)
     t_col, t_upd, batch = [], {p: [] for p in precisions}, None
     tick = time.perf_counter()
     for batch in collector:
         t_col.append(time.perf_counter() - tick)
-        for p in precisions:  # the same batch through each precision, interleaved
-            run = OmegaConf.merge(cfg, {"algo": {"update_precision": p}})
-            t_upd[p].append(update_time(run, batch, loss, gae, opt, adaptation, aopt, actor))
+        for p, algorithm in algorithms.items():  # the same batch through each, interleaved
+            t0 = time.perf_counter()
+            algorithm.update(batch.reshape(-1, batch.shape[-1]).clone())
+            t_upd[p].append(time.perf_counter() - t0)
         tick = time.perf_counter()
     collector.shutdown()
     return (frames / np.mean(t_col[1:]), [frames / np.mean(t_upd[p][1:]) for p in precisions],
             batch)
-
-
-def update_time(cfg, batch, loss, gae, opt, adaptation, aopt, actor) -> float:
-    t0 = time.perf_counter()
-    batch = batch.reshape(-1, batch.shape[-1])
-    gae(batch)
-    ppo_update(loss, opt, batch.reshape(-1), cfg.algo, exact_kl=True)
-    a = adaptation_loss(adaptation, actor, batch.reshape(-1))
-    aopt.zero_grad()
-    a.backward()
-    aopt.step()
-    return time.perf_counter() - t0
 
 
 def loop_rate(cfg, iterations: int) -> float:

@@ -144,7 +144,7 @@ def main() -> None:
     try:
         from legoh.play import render_policy_video
 
-        render_policy_video(cfg, run.actor, out / "final_policy.mp4")
+        render_policy_video(cfg, run.policy, out / "final_policy.mp4")
     except ImportError:
         print("[learn_walk] no renderer (legoh.play) yet: video skipped")
 

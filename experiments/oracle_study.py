@@ -26,7 +26,8 @@ from legoh.envs.hiking_env import make_env  # noqa: E402
 from legoh.eval.benchmark import compare, evaluate  # noqa: E402
 from legoh.eval.curves import plot_learning_curve, read_columns  # noqa: E402
 from legoh.eval.metrics import write_csv, write_markdown  # noqa: E402
-from legoh.train.oracle import build_oracle, train_oracle  # noqa: E402
+from legoh.policies.oracle import build_oracle  # noqa: E402
+from legoh.train.oracle import train_oracle  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "experiments" / "results" / "oracle_study"
@@ -80,7 +81,7 @@ def main() -> None:
 
     results = {
         "untrained": evaluate(cfg, untrained, OUT / "eval_untrained", label="untrained"),
-        "trained": evaluate(cfg, run.actor, OUT / "eval_trained", label="trained oracle"),
+        "trained": evaluate(cfg, run.policy, OUT / "eval_trained", label="trained oracle"),
     }
     rows = compare(results)
     title = (f"Oracle ({args.robot}, trail={args.trail}) after {run.iterations} iterations "

@@ -28,7 +28,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from learn_walk import compose_run  # noqa: E402
 
 from legoh.eval.benchmark import evaluate, make_eval_env  # noqa: E402
-from legoh.train.oracle import PRETRAINED_DIR, load_oracle_actor  # noqa: E402
+from legoh.policies.oracle import load_oracle_actor  # noqa: E402
+from legoh.policies.pretrained import PRETRAINED_DIR  # noqa: E402
 
 MAX_BYTES = 10 * 2**20
 

@@ -47,18 +47,18 @@ def train_and_evaluate(cfg: DictConfig, out_dir: Path) -> None:
         from legoh.train.oracle import train_oracle
 
         run = train_oracle(cfg, out_dir, resume=cfg.resume)
-        result = evaluate(cfg, run.actor, out_dir, label="oracle")
+        result = evaluate(cfg, run.policy, out_dir, label=cfg.algo.name)
     else:
-        from legoh.train.unified import student_eval_env_fn, train_student
+        from legoh.eval.benchmark import student_eval_env_fn
+        from legoh.export import export_student
+        from legoh.train.unified import train_student
 
         run = train_student(cfg, out_dir, resume=cfg.resume)
-        result = evaluate(cfg, run.student.policy, out_dir, label=cfg.algo.name,
-                          env_fn=student_eval_env_fn(cfg, run.student))
-        print(f"[legoh] oracle used:       {run.oracle}")
-        from legoh.export import export_student
-
-        deployed = export_student(run.student, out_dir / "policy.ts",
-                                  meta=export_meta(cfg))
+        student = run.algorithm.student
+        result = evaluate(cfg, student.policy, out_dir, label=cfg.algo.name,
+                          env_fn=student_eval_env_fn(cfg, student))
+        print(f"[legoh] oracle used:       {run.algorithm.teacher_path}")
+        deployed = export_student(student, out_dir / "policy.ts", meta=export_meta(cfg))
         print(f"[legoh] deployable policy: {deployed} (TorchScript, docs/unified.md)")
     print(Path(result["paths"]["markdown"]).read_text())
     print(f"[legoh] checkpoint:        {run.checkpoint}")
@@ -89,15 +89,15 @@ def export_meta(cfg: DictConfig) -> dict:
 
 def export(cfg: DictConfig, out_dir: Path) -> Path:
     """``mode=export``: the student of ``checkpoint`` as one TorchScript file."""
-    from legoh.eval.cli import build_student_policy
     from legoh.export import export_student
+    from legoh.policies.student import student_from_checkpoint
 
     if cfg.algo.stage == Stage.oracle:
         raise ValueError("mode=export deploys a depth student (algo=unified, ep_h, ...); "
                          "the oracle needs privileged inputs a robot does not have")
     if not cfg.checkpoint:
         raise ValueError("mode=export needs checkpoint=<path to a stage-2 checkpoint>")
-    student, _ = build_student_policy(cfg, cfg.checkpoint)
+    student = student_from_checkpoint(cfg, cfg.checkpoint)
     path = export_student(student, out_dir / "policy.ts", meta=export_meta(cfg))
     print(f"[legoh] exported {cfg.checkpoint} to {path}")
     return path

@@ -79,7 +79,8 @@ def make_payload(*, models: Mapping[str, torch.nn.Module],
     """Assemble a checkpoint payload; RNG states are captured now.
 
     Args:
-        models / optimizers: name -> module / optimizer (their state dicts are stored).
+        models / optimizers: name -> module / optimizer (their state dicts are stored), or
+            name -> state dict (an algorithm's ``state_dict()``).
         iteration: the last completed iteration. robot: robot name (e.g. ``"h1"``).
         layout: observation key -> per-env shape (e.g. ``OracleInputDims.as_layout()``).
         curriculum: curriculum state. config: resolved config (plain containers).
@@ -87,8 +88,8 @@ def make_payload(*, models: Mapping[str, torch.nn.Module],
     """
     return {
         "format": FORMAT_VERSION,
-        "models": {k: m.state_dict() for k, m in models.items()},
-        "optimizers": {k: o.state_dict() for k, o in (optimizers or {}).items()},
+        "models": {k: _state_of(m) for k, m in models.items()},
+        "optimizers": {k: _state_of(o) for k, o in (optimizers or {}).items()},
         "iteration": int(iteration),
         "curriculum": dict(curriculum or {}),
         "rng": rng_state(),
@@ -97,6 +98,10 @@ def make_payload(*, models: Mapping[str, torch.nn.Module],
         "layout": normalize_layout(layout),
         "extra": dict(extra or {}),
     }
+
+
+def _state_of(obj: Any) -> Mapping:
+    return obj if isinstance(obj, Mapping) else obj.state_dict()
 
 
 def save_checkpoint(path: str | Path, payload: Mapping[str, Any]) -> Path:

@@ -14,8 +14,9 @@ import torch
 from legoh import keys
 from legoh.envs.hiking_env import make_env
 from legoh.modules.actor_critic import LOC
+from legoh.policies.oracle import build_oracle
 from legoh.train.collect import envs_per_worker, make_collector, sync_weights
-from legoh.train.oracle import build_oracle, train_oracle
+from legoh.train.oracle import train_oracle
 from tests.conftest import compose_config
 from tests.test_train_oracle import TINY
 

@@ -22,17 +22,13 @@ import torch
 from omegaconf import OmegaConf
 from tensordict import TensorDict
 
-from legoh.config.compose import compose_config
+from legoh.envs.hiking_env import make_env
 from legoh.envs.robots import build_robot_spec
-from legoh.modules.actor_critic import (
-    LOC,
-    STATE_VALUE,
-    OracleInputDims,
-    OracleNetConfig,
-    make_oracle_actor_critic,
-)
-from legoh.modules.encoders import PRIV_LATENT_EST, make_adaptation_module
-from legoh.train.oracle import load_oracle_checkpoint, oracle_net_config
+from legoh.modules.actor_critic import LOC, STATE_VALUE
+from legoh.modules.encoders import PRIV_LATENT_EST
+from legoh.policies.oracle import load_oracle, load_oracle_checkpoint
+from legoh.train.oracle import OraclePPO
+from tests.conftest import compose_config
 
 ROOT = Path(__file__).resolve().parents[1]
 RECORDED = ROOT / "tests" / "data" / "checkpoint_outputs.json"
@@ -47,27 +43,34 @@ def committed_checkpoints() -> list[str]:
             and p.endswith("_oracle.pt")]
 
 
-def outputs(path: str) -> dict:
-    """Actor mean, critic value and adaptation latent on seeded observations of the
-    checkpoint's own layout, its robot's action count."""
+def robot_config(path: str):
+    """The current config of the checkpoint's robot (older checkpoints' own configs no longer
+    fit the schema; the checkpoint's network settings are read from it by the loaders)."""
     robot = torch.load(ROOT / path, map_location="cpu", weights_only=True)["robot"]
-    cfg = compose_config(f"robot={robot}")
-    state = load_oracle_checkpoint(ROOT / path, cfg)
-    net_cfg = oracle_net_config(cfg, state)
-    dims = OracleInputDims.from_layout(state["layout"])
-    actions = len(build_robot_spec(OmegaConf.to_object(cfg.robot))[1].action_scale)
-    net = OracleNetConfig(init_std=net_cfg.algo.init_noise_std,
-                          critic=tuple(int(s) for s in net_cfg.algo.critic_hidden))
-    actor, critic = make_oracle_actor_critic(dims, actions, net_cfg.algo.tanh_bound, net)
-    adaptation = make_adaptation_module(dims.proprio, dims.history)
-    for name, module in (("actor", actor), ("critic", critic), ("adaptation", adaptation)):
-        module.load_state_dict(state["models"][name])
+    return compose_config(f"robot={robot}", "trail=flat", "trail.variants=1", "trail.levels=1")
+
+
+def fixed_observations(layout: dict) -> TensorDict:
+    """BATCH seeded normal draws of every input of ``layout``."""
     gen = torch.Generator().manual_seed(0)
-    td = TensorDict({tuple(k.split("/")): torch.randn(BATCH, *shape, generator=gen)
-                     for k, shape in sorted(state["layout"].items())}, batch_size=[BATCH])
+    return TensorDict({tuple(k.split("/")): torch.randn(BATCH, *shape, generator=gen)
+                       for k, shape in sorted(layout.items())}, batch_size=[BATCH])
+
+
+def outputs_of(actor, critic, adaptation, layout: dict) -> dict:
+    """Actor mean, critic value and adaptation latent on :func:`fixed_observations`."""
+    td = fixed_observations(layout)
     with torch.no_grad():
         return {"action": actor(td.clone())[LOC], "value": critic(td.clone())[STATE_VALUE],
                 "adaptation": adaptation(td.clone())[PRIV_LATENT_EST]}
+
+
+def outputs(path: str) -> dict:
+    """The outputs of checkpoint ``path`` loaded as eval, play and stage 2 load it."""
+    cfg = robot_config(path)
+    layout = load_oracle_checkpoint(ROOT / path, cfg)["layout"]  # after any conversion
+    actions = len(build_robot_spec(OmegaConf.to_object(cfg.robot))[1].action_scale)
+    return outputs_of(*load_oracle(cfg, ROOT / path, actions), layout)
 
 
 def sha256(path: str) -> str:
@@ -86,6 +89,28 @@ def test_committed_checkpoint_computes_what_it_did(path: str) -> None:
     for name, value in got.items():
         torch.testing.assert_close(value, torch.tensor(want[name]), rtol=1e-5, atol=1e-5,
                                    msg=lambda m, name=name: f"{path} {name}: {m}")
+
+
+@pytest.mark.parametrize("path", committed_checkpoints())
+def test_committed_checkpoint_resumes_into_the_oracle_algorithm(path: str) -> None:
+    """The runner's resume path: the algorithm reads the checkpoint and loads models and
+    optimisers under the names the campaign's checkpoints carry."""
+    state = torch.load(ROOT / path, map_location="cpu", weights_only=True)
+    critic = state["extra"].get("critic_hidden", [512, 256, 128])
+    cfg = OmegaConf.merge(robot_config(path), {"algo": {"critic_hidden": critic}})
+    env = make_env(cfg, num_envs=1)
+    try:
+        algorithm = OraclePPO(cfg, env, device=torch.device("cpu"))
+        algorithm.load_state_dict(algorithm.read_checkpoint(ROOT / path))
+    finally:
+        env.close()
+    assert set(algorithm.models) == set(state["models"])
+    assert set(algorithm.optimizers) == set(state["optimizers"])
+    want = json.loads(RECORDED.read_text()).get(path)
+    if want is not None and want["sha256"] == sha256(path):
+        got = outputs_of(*algorithm.models.values(), algorithm.layout)
+        torch.testing.assert_close(got["action"], torch.tensor(want["action"]), rtol=1e-5,
+                                   atol=1e-5)
 
 
 def record() -> None:

@@ -69,7 +69,7 @@ def test_training_runs_through_the_device_switch(tmp_path: Path) -> None:
     cfg = compose_config(*TINY, "device=cpu", "algo.total_frames=32")
     run = train_oracle(cfg, tmp_path)
     assert run.iterations == 1
-    assert all(p.device == torch.device("cpu") for p in run.actor.parameters())
+    assert all(p.device == torch.device("cpu") for p in run.policy.parameters())
 
 
 @pytest.mark.skipif(not HAS_CUDA, reason="no CUDA GPU on this machine")
@@ -78,4 +78,4 @@ def test_training_on_the_gpu(tmp_path: Path) -> None:
     cfg = compose_config(*TINY, "device=cuda", "algo.total_frames=64")
     run = train_oracle(cfg, tmp_path)
     assert run.iterations == 2
-    assert all(p.is_cuda for p in run.actor.parameters())
+    assert all(p.is_cuda for p in run.policy.parameters())

@@ -12,7 +12,8 @@ from legoh import keys
 from legoh.checkpoint import CheckpointError, load_checkpoint
 from legoh.envs.hiking_env import make_env
 from legoh.envs.mdp import events
-from legoh.train.oracle import build_oracle, load_oracle_checkpoint, warm_start
+from legoh.policies.oracle import build_oracle, load_oracle_checkpoint
+from legoh.train.oracle import warm_start
 from tests.conftest import compose_config
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -185,7 +186,7 @@ def test_an_oracle_is_rebuilt_from_its_own_head(tmp_path) -> None:
     from omegaconf import OmegaConf
 
     from legoh.checkpoint import make_payload, save_checkpoint
-    from legoh.train.oracle import load_oracle_actor
+    from legoh.policies.oracle import load_oracle_actor
 
     bounded = compose_config("trail=flat", *SMALL, "algo.tanh_bound=4.8")
     env, dims, models = _actor_on(bounded, None)

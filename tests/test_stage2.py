@@ -8,7 +8,7 @@ import torch
 from legoh.config.algo import NavReward, UnifiedConfig
 from legoh.envs.mdp.rewards import active_terms, compute_rewards
 from legoh.envs.mdp.state import Goals, NavProgress, TrailTable
-from legoh.train.unified import nav_reward_weights
+from legoh.policies.student import nav_reward_weights
 from tests.test_rewards import DT, PARAMS, neutral
 
 WALKER = 0.041  # reward a step of the flat walker's own (walk preset) terms, measured
@@ -132,7 +132,7 @@ def test_stage_two_commands_the_evaluation_speed() -> None:
     """The oracle reads the forward-speed command, the student cannot: stage 2 commands
     env.goal_speed in every episode. Failed before: speeds drawn from U(0.3, 1.0), 10 % 0."""
     from legoh.envs.hiking_env import make_env
-    from legoh.train.unified import student_env_overrides
+    from legoh.policies.student import student_env_overrides
     from tests.conftest import compose_config
 
     cfg = compose_config("algo=unified", "trail=flat", "trail.levels=1", "trail.variants=1")
@@ -194,7 +194,7 @@ def test_the_stage_two_critic_follows_returns_far_below_its_values() -> None:
 def test_every_student_explores_with_the_same_fixed_std() -> None:
     """Failed before: LEGO-H sampled with a trained std starting at 0.5, the distill-only
     baselines with 0.1."""
-    from legoh.train.unified import build_student, make_student_env
+    from legoh.policies.student import build_student, make_student_env
     from tests.conftest import compose_config
 
     scales = {}
@@ -233,7 +233,7 @@ def test_stage_two_trains_with_the_past_rule_and_evaluates_with_radius() -> None
     """The oracle's env keeps radius (its training campaign uses it); stage 2's training
     env passes waypoints once past them; its evaluation counts TR and TC as the oracle's."""
     from legoh.config.env import WaypointPass
-    from legoh.train.unified import student_env_overrides
+    from legoh.policies.student import student_env_overrides
     from tests.conftest import compose_config
 
     assert compose_config("algo=oracle").env.waypoint_pass == WaypointPass.radius
@@ -296,8 +296,9 @@ def test_the_pretrained_prior_rebuilds_teacher_actions_better_than_a_fresh_one()
 
     from legoh.config.env import DepthConfig
     from legoh.envs.hiking_env import make_env
+    from legoh.policies.oracle import load_teacher
+    from legoh.policies.student import student_env_overrides
     from legoh.train.prior import make_prior, pretrain_prior, reconstruction_error, teacher_actions
-    from legoh.train.unified import load_oracle, student_env_overrides
     from tests.conftest import compose_config
 
     torch.set_num_threads(1)
@@ -307,7 +308,7 @@ def test_the_pretrained_prior_rebuilds_teacher_actions_better_than_a_fresh_one()
                          "algo.prior_pretrain_steps=150")
     env = make_env(cfg, 16, **{**student_env_overrides(cfg), "depth": DepthConfig()})
     try:
-        oracle, _ = load_oracle(cfg, walker, env)
+        oracle, _ = load_teacher(cfg, walker, env)
         torch.manual_seed(0)
         vae, optim, _ = make_prior(cfg, env.action_spec.shape[-1])
         fresh = copy.deepcopy(vae)

@@ -9,7 +9,7 @@ from legoh import keys
 from legoh.modules.actor_critic import LOC
 from legoh.modules.students import STUDENTS, StudentDims, make_student, unroll
 from legoh.objectives.distill import distillation_loss, goal_correction_target
-from legoh.train.unified import make_student_env, state_shapes
+from legoh.policies.student import make_student_env, state_shapes
 from tests.conftest import compose_config
 
 NUM_ENVS, STEPS = 3, 12

@@ -11,7 +11,8 @@ from legoh.checkpoint import CheckpointError, load_checkpoint
 from legoh.envs.hiking_env import make_env
 from legoh.logs import read_mcap
 from legoh.objectives.ppo import adapt_learning_rate, make_ppo, ppo_update
-from legoh.train.oracle import build_oracle, train_oracle
+from legoh.policies.oracle import build_oracle
+from legoh.train.oracle import train_oracle
 from tests.conftest import compose_config
 
 TINY = ("trail=flat", "trail.levels=1", "trail.variants=1", "algo.num_envs=4",

@@ -14,17 +14,13 @@ from omegaconf import OmegaConf
 from legoh.app import export
 from legoh.checkpoint import CheckpointError, load_checkpoint
 from legoh.config import validate
-from legoh.eval.benchmark import evaluate
+from legoh.eval.benchmark import evaluate, student_eval_env_fn
 from legoh.eval.cli import build_actor
 from legoh.eval.metrics import METRICS
 from legoh.eval.study import STUDIES, study_table
 from legoh.export import load_exported
-from legoh.train.unified import (
-    ensure_oracle,
-    oracle_artefact_dir,
-    student_eval_env_fn,
-    train_student,
-)
+from legoh.train.teacher import ensure_oracle, oracle_artefact_dir
+from legoh.train.unified import train_student
 from tests.conftest import CONF_DIR, compose_config
 
 TINY = ("trail=flat", "algo.num_envs=4", "algo.steps_per_env=8", "algo.total_frames=64",
@@ -43,7 +39,7 @@ def artefacts(tmp_path_factory):
 def no_shipped_oracle(tmp_path, monkeypatch):
     """These tests train their tiny oracle (or reuse it): a shipped oracle in pretrained/
     would be the teacher otherwise."""
-    monkeypatch.setattr("legoh.train.oracle.PRETRAINED_DIR", tmp_path / "no-pretrained")
+    monkeypatch.setattr("legoh.policies.pretrained.PRETRAINED_DIR", tmp_path / "no-pretrained")
 
 
 def tiny(algo, artefacts, *more):
@@ -67,7 +63,7 @@ def test_the_shipped_oracle_is_the_default_teacher(artefacts, tmp_path, monkeypa
     shipped = tmp_path / "pretrained"
     shipped.mkdir()
     shutil.copy(trained, shipped / "h1_oracle.pt")
-    monkeypatch.setattr("legoh.train.oracle.PRETRAINED_DIR", shipped)
+    monkeypatch.setattr("legoh.policies.pretrained.PRETRAINED_DIR", shipped)
     fresh = tmp_path / "fresh-artefacts"
     assert ensure_oracle(tiny("unified", fresh)) == shipped / "h1_oracle.pt"
     assert not fresh.exists()  # no oracle trained
@@ -109,7 +105,8 @@ def test_a_teacher_of_another_robot_or_layout_is_refused(artefacts, tmp_path):
     """The teacher's checkpoint names its robot and observation layout; a mismatch is
     refused naming the field, before anything trains."""
     from legoh.checkpoint import save_checkpoint
-    from legoh.train.unified import load_oracle, make_student_env
+    from legoh.policies.oracle import load_teacher
+    from legoh.policies.student import make_student_env
 
     cfg = tiny("rma_b", artefacts)
     state = load_checkpoint(ensure_oracle(cfg))
@@ -117,11 +114,11 @@ def test_a_teacher_of_another_robot_or_layout_is_refused(artefacts, tmp_path):
     try:
         save_checkpoint(tmp_path / "g1.pt", {**state, "robot": "g1"})
         with pytest.raises(CheckpointError, match="robot 'g1'"):
-            load_oracle(cfg, tmp_path / "g1.pt", env)
+            load_teacher(cfg, tmp_path / "g1.pt", env)
         layout = {**state["layout"], "obs/proprio": (7,)}
         save_checkpoint(tmp_path / "layout.pt", {**state, "layout": layout})
         with pytest.raises(CheckpointError, match="obs/proprio"):
-            load_oracle(cfg, tmp_path / "layout.pt", env)
+            load_teacher(cfg, tmp_path / "layout.pt", env)
     finally:
         env.close()
 
@@ -146,7 +143,7 @@ def test_one_dagger_iteration_then_resume(artefacts, tmp_path, algo):
     assert meta["algo"] == algo and meta["held_dim"] > 0
     policy, env_fn = build_actor(ckpt, ckpt.checkpoint)
     for a, b in zip(policy.locomotion.state_dict().values(),
-                    resumed.student.locomotion.state_dict().values(), strict=True):
+                    resumed.algorithm.student.locomotion.state_dict().values(), strict=True):
         assert torch.equal(a, b)
     assert env_fn(0).observation_spec["obs"]["proprio"].shape[-1] == meta["proprio"]
 
@@ -193,8 +190,8 @@ def test_student_benchmark_and_study_table(artefacts, tmp_path):
         job = sweep / f"ep_h-seed{seed}"
         run = train_student(cfg, job)
         torch.manual_seed(seed)
-        result = evaluate(cfg, run.student.policy, job, label="ep_h", progress=False,
-                          env_fn=student_eval_env_fn(cfg, run.student))
+        result = evaluate(cfg, run.algorithm.student.policy, job, label="ep_h", progress=False,
+                          env_fn=student_eval_env_fn(cfg, run.algorithm.student))
         assert set(result["rows"]["overall"]) == set(METRICS)
         (job / ".hydra").mkdir()
         (job / ".hydra" / "config.yaml").write_text(OmegaConf.to_yaml(cfg))

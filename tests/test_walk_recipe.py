@@ -14,7 +14,7 @@ from legoh import keys
 from legoh.envs.hiking_env import make_env
 from legoh.envs.mdp.events import randomizing
 from legoh.envs.mdp.state import compute_state, gait_phase
-from legoh.train.oracle import build_oracle
+from legoh.policies.oracle import build_oracle
 from legoh.train.runner import batch_scalars
 from tests.conftest import compose_config
 

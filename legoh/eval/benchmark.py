@@ -46,6 +46,7 @@ from legoh.eval.metrics import (
     write_csv,
 )
 from legoh.eval.plots import outcome_labels, plot_trajectories
+from legoh.policies.student import make_student_env, state_shapes
 from legoh.threads import torch_threads
 
 OVERALL = "overall"
@@ -108,6 +109,18 @@ def eval_env_settings(cfg: DictConfig, run: int) -> tuple[DictConfig, int, dict]
              "spawn_remaining": spawn, "randomization": eval_randomization(cfg)})
 
 
+def student_eval_env_fn(cfg: DictConfig, student) -> Callable[[int], EnvBase]:
+    """The env factory of a student's evaluation: run ``run``'s evaluation env with the
+    student's sensors (depth) and its recurrent state primed."""
+    shapes = state_shapes(student)
+
+    def make(run: int) -> EnvBase:
+        run_cfg, num_envs, overrides = eval_env_settings(cfg, run)
+        return make_student_env(run_cfg, num_envs, shapes, evaluation=True, **overrides)
+
+    return make
+
+
 def make_eval_env(cfg: DictConfig, run: int = 0):
     """The evaluation env of run ``run`` (curriculum off, evaluation reach radius)."""
     from legoh.envs.hiking_env import make_env
@@ -122,7 +135,7 @@ def rollout_level(env, actor, level: int, tc_radius: float = TC_RADIUS) -> Level
     the expert waypoints ahead of each robot's spawn (its first goal index up to, not
     including, the terminus) passed within ``tc_radius`` m."""
     n = env.num_envs
-    env.level[:] = level
+    env.set_level(level)
     td = env.reset()
     start = td[keys.BASE_POS].cpu().numpy().copy()
     tile = td[keys.TILE].cpu().numpy().copy()

@@ -8,8 +8,9 @@ from pathlib import Path
 from omegaconf import DictConfig, OmegaConf
 
 from legoh.config.algo import Stage
-from legoh.eval.benchmark import evaluate, make_eval_env
-from legoh.train.oracle import build_oracle, load_oracle_actor
+from legoh.eval.benchmark import evaluate, make_eval_env, student_eval_env_fn
+from legoh.policies.oracle import build_oracle, load_oracle_actor
+from legoh.policies.student import student_from_checkpoint
 
 
 def build_actor(cfg: DictConfig, checkpoint: str | None = None):
@@ -29,20 +30,7 @@ def build_actor(cfg: DictConfig, checkpoint: str | None = None):
 
 def build_student_policy(cfg: DictConfig, checkpoint: str | None = None):
     """A stage-2 student (``cfg.algo.student``) and its evaluation env factory."""
-    from legoh.train.unified import (
-        build_student,
-        load_student,
-        make_student_env,
-        student_eval_env_fn,
-    )
-
-    probe = make_student_env(cfg, 1, ((1,), 1))
-    try:
-        student = build_student(cfg, probe)
-    finally:
-        probe.close()
-    if checkpoint:
-        load_student(cfg, checkpoint, student)
+    student = student_from_checkpoint(cfg, checkpoint)
     return student, student_eval_env_fn(cfg, student)
 
 

@@ -1,13 +1,16 @@
 """The loop both training stages share (rsl_rl's OnPolicyRunner is the shape).
 
-A stage builds its env, networks, optimisers and its ``update(batch) -> stats``; the runner
-owns everything around the update: the collector, resuming, the per-iteration scalars,
-CSV and MCAP logs, checkpoints, the progress bar, weight sync to collector workers, and the
-graceful end on SIGINT / SIGTERM.
+A stage builds its env and its :class:`legoh.train.algorithm.Algorithm` (networks,
+optimisers, ``update(batch) -> stats``); the runner owns everything around the update: the
+seed (:func:`training_session`), the collector, resuming, the per-iteration scalars, CSV
+and MCAP logs, checkpoints, the progress bar, weight sync to collector workers, the
+graceful end on SIGINT / SIGTERM and the :class:`Run` record.
 
-    runner = OnPolicyRunner(cfg, out_dir, env, models, optims, layout, "oracle.pt")
-    start = runner.resume(resume, load=...)               # a killed run continues
-    runner.learn(policy, make_env_fn, update, start, stop)
+    with training_session(cfg, out_dir) as stop:
+        env = make_env(cfg, num_envs=cfg.algo.num_envs)
+        runner = OnPolicyRunner(cfg, env, OraclePPO(cfg, env), out_dir, env_fn)
+        runner.resume(path)                                # a killed run continues
+        run = runner.learn(stop)
 """
 
 from __future__ import annotations
@@ -15,106 +18,116 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import torch
 from omegaconf import DictConfig, OmegaConf
 from tqdm import tqdm
 
 from legoh import keys
 from legoh.checkpoint import make_payload, restore_rng, save_checkpoint
+from legoh.envs.mdp.observations import proprio_slice
 from legoh.logs import McapLog, ScalarCSV
 from legoh.runs import GracefulStop, iterations_left, mujoco_log_in, run_lock, warn_diverged
-from legoh.train.collect import make_collector, mirror_curriculum, policy_device, sync_weights
+from legoh.threads import torch_threads
+from legoh.train.algorithm import Algorithm
+from legoh.train.collect import make_collector, mirror_curriculum, sync_weights
 
 
 @contextmanager
 def training_session(cfg: DictConfig, out_dir: Path) -> Iterator[GracefulStop]:
     """What a training run holds while it lives: the run folder's lock, MuJoCo's log in
-    the folder, the learner's torch threads, and the SIGINT / SIGTERM handler it yields."""
-    from legoh.threads import torch_threads
-
+    the folder, the learner's torch threads, and the SIGINT / SIGTERM handler it yields.
+    Torch is seeded with ``cfg.seed`` on entry, before the stage builds its networks."""
     with (run_lock(out_dir), mujoco_log_in(out_dir), torch_threads(cfg.algo.torch_threads),
           GracefulStop() as stop):
+        torch.manual_seed(cfg.seed)
         yield stop
 
 
 @dataclass
+class Run:
+    """What a training run leaves behind."""
+
+    algorithm: Algorithm
+    checkpoint: Path
+    csv: Path
+    mcap: Path
+    iterations: int
+
+    @property
+    def policy(self) -> torch.nn.Module:
+        """The trained acting module (the oracle's actor, a student's policy)."""
+        return self.algorithm.policy
+
+
 class OnPolicyRunner:
     """Collect, update, log and checkpoint until ``cfg.algo.total_frames``.
 
     Args:
-        cfg: the run config. out_dir: the run folder. env: the training env (stepped by the
-        in-process collector; with workers it carries the curriculum). models / optims:
-        what checkpoints hold, by name. layout: the observation layout checkpoints carry.
-        checkpoint_name: the file in ``out_dir``. extra: more checkpoint fields.
-        desc: the progress bar's label.
+        cfg: the run config. env: the training env (stepped by the in-process collector;
+            with workers it carries the curriculum). algorithm: the stage's learner.
+        out_dir: the run folder. env_fn: ``env_fn(num_envs)`` builds an env like ``env``
+            (picklable: collector workers call it).
     """
 
-    cfg: DictConfig
-    out_dir: Path
-    env: object
-    models: dict
-    optims: dict
-    layout: dict
-    checkpoint_name: str
-    extra: dict | None = None
-    desc: str = "train"
-    iteration: int = 0
-    _resolved: dict = field(default_factory=dict, repr=False)
-
-    def __post_init__(self) -> None:
+    def __init__(self, cfg: DictConfig, env, algorithm: Algorithm, out_dir: Path,
+                 env_fn: Callable) -> None:
+        self.cfg, self.env, self.algorithm, self.env_fn = cfg, env, algorithm, env_fn
+        self.out_dir = Path(out_dir)
         self.out_dir.mkdir(parents=True, exist_ok=True)
-        self.device = policy_device(self.cfg)  # the learner's
-        self._resolved = OmegaConf.to_container(self.cfg, resolve=True, enum_to_str=True)
+        self.iteration, self.resumed = 0, None
+        self._resolved = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
 
     @property
     def checkpoint_path(self) -> Path:
-        return self.out_dir / self.checkpoint_name
+        return self.out_dir / f"{self.algorithm.name}.pt"
 
     def checkpoint(self, iteration: int) -> None:
-        """Models, optimisers, curriculum and RNG at ``iteration``, written atomically."""
-        base = getattr(self.env, "base_env", self.env)
+        """The algorithm's state, curriculum and RNG at ``iteration``, written atomically."""
         save_checkpoint(self.checkpoint_path, make_payload(
-            models=self.models, optimizers=self.optims, iteration=iteration,
-            robot=self.cfg.robot.name, layout=self.layout, config=self._resolved,
-            extra=self.extra,
-            curriculum=base.curriculum_state()))
+            **self.algorithm.state_dict(), iteration=iteration, robot=self.cfg.robot.name,
+            layout=self.algorithm.layout, config=self._resolved, extra=self.algorithm.extra,
+            curriculum=self.env.curriculum_state()))
 
-    def resume(self, state: dict) -> int:
-        """Load a checkpoint's state (already read and checked) into the run; returns the
-        iteration to continue from."""
-        self.iteration = restore_training(state, self.models, self.optims, self.env)
+    def resume(self, path: str | Path) -> int:
+        """Continue from checkpoint ``path`` (read and checked by the algorithm): models,
+        optimisers, curriculum, RNG; returns the iteration to continue from."""
+        state = self.algorithm.read_checkpoint(path)
+        self.iteration = restore_training(state, self.algorithm, self.env)
+        self.resumed = str(path)
+        print(f"[legoh] resumed from {path} at iteration {self.iteration}")
         return self.iteration
 
-    def learn(self, policy, make_env_fn: Callable, update: Callable[[object], dict],
-              stop: GracefulStop, resumed: str | None = None,
-              on_iteration: Callable | None = None,
-              postfix: Callable[[dict], dict] | None = None) -> int:
-        """Train until the frame budget; returns the last iteration.
+    def learn(self, stop: GracefulStop, on_iteration: Callable | None = None,
+              resume_hint: str | None = None) -> Run:
+        """Train until the frame budget; returns the run's record.
 
-        ``update(batch)`` gets each (envs, time) batch on the learner's device and returns
-        its scalars. ``on_iteration(it, stats)`` runs after logging; True stops training.
-        ``postfix(stats)``: extra progress-bar fields.
+        ``on_iteration(it, stats)`` runs after logging; True stops training. On SIGINT /
+        SIGTERM the run ends after the iteration under way with a checkpoint and exits with
+        the command that resumes it (``resume_hint``; default ``python run.py ...
+        resume=<checkpoint>``).
         """
-        cfg, algo, env = self.cfg, self.cfg.algo, self.env
+        cfg, algo, env, alg = self.cfg, self.cfg.algo, self.env, self.algorithm
         frames_per_batch = algo.num_envs * algo.steps_per_env
         iterations = max(1, algo.total_frames // frames_per_batch)
         start = it = self.iteration
-        left = iterations_left(start, iterations, frames_per_batch, algo.total_frames, resumed)
-        collector = make_collector(cfg, make_env_fn, policy, frames_per_batch,
+        left = iterations_left(start, iterations, frames_per_batch, algo.total_frames,
+                               self.resumed)
+        collector = make_collector(cfg, self.env_fn, alg.policy, frames_per_batch,
                                    left * frames_per_batch, env=env)
-        csv = ScalarCSV(self.out_dir / "train.csv", resume=bool(resumed), until=start)
+        csv = ScalarCSV(self.out_dir / "train.csv", resume=bool(self.resumed), until=start)
         mcap = McapLog(self.out_dir, stem="train")
-        dt = getattr(env, "base_env", env).dt
-        categories = getattr(env, "base_env", env).terrain.categories
-        bar = tqdm(total=iterations, initial=start, desc=self.desc, unit="it")
+        dt = env.dt  # a stage-2 TransformedEnv forwards these to its HikingEnv
+        categories = env.terrain.categories
+        bar = tqdm(total=iterations, initial=start, desc=alg.label, unit="it")
         tick = time.perf_counter()
         for batch in stop.batches(collector):
             got = time.perf_counter()
-            batch = batch.reshape(-1, batch.shape[-1]).to(self.device)  # (envs, time)
-            stats = update(batch)
+            batch = batch.reshape(-1, batch.shape[-1]).to(alg.device)  # (envs, time)
+            stats = alg.update(batch)
             stats["time/collect"], stats["time/update"] = got - tick, time.perf_counter() - got
             sync_weights(collector)  # workers act with the updated policy from the next batch
             mirror_curriculum(collector, env, batch)  # workers' levels -> checkpoint
@@ -128,7 +141,7 @@ class OnPolicyRunner:
             ep = stats["episode_frames"]
             bar.set_postfix(fps=f"{stats['frames_per_s']:.0f}", reward=f"{stats['reward']:.3f}",
                             ep_len="-" if np.isnan(ep) else f"{ep * dt:.1f}s",
-                            fell=f"{stats['fell_frac']:.2f}", **(postfix or dict)(stats))
+                            fell=f"{stats['fell_frac']:.2f}", **alg.progress(stats))
             if on_iteration is not None and on_iteration(it, stats):
                 self.checkpoint(it)
                 break
@@ -136,10 +149,12 @@ class OnPolicyRunner:
         collector.shutdown()
         csv.close()
         mcap.close()
-        self.csv_path, self.mcap_path, self.iteration = csv.path, mcap.path, it
+        self.iteration = it
         if it == start or stop.signum:  # nothing trained, or a signal: leave a checkpoint
             self.checkpoint(it)
-        return it
+        stop.exit_if_signalled(self.checkpoint_path, resume_hint)
+        return Run(algorithm=alg, checkpoint=self.checkpoint_path, csv=csv.path,
+                   mcap=mcap.path, iterations=it)
 
 
 def batch_scalars(batch, categories: list[str] | None = None) -> dict[str, float]:
@@ -178,14 +193,11 @@ def batch_scalars(batch, categories: list[str] | None = None) -> dict[str, float
     return stats
 
 
-def restore_training(state: dict, models: dict, optims: dict, env) -> int:
-    """Load a checkpoint's modules, optimisers, curriculum and RNG into a run; returns the
+def restore_training(state: dict, algorithm: Algorithm, env) -> int:
+    """Load a checkpoint's models, optimisers, curriculum and RNG into a run; returns the
     iteration to continue from."""
-    for name, module in models.items():
-        module.load_state_dict(state["models"][name])
-    for name, opt in optims.items():
-        opt.load_state_dict(state["optimizers"][name])
-    getattr(env, "base_env", env).load_curriculum_state(state["curriculum"])
+    algorithm.load_state_dict(state)
+    env.load_curriculum_state(state["curriculum"])
     restore_rng(state["rng"])
     return int(state["iteration"])
 
@@ -207,13 +219,12 @@ def record_iteration(it: int, iterations: int, stats: dict, batch, algo, csv: Sc
 def log_trajectory(mcap: McapLog, iteration: int, batch, dt: float, env_index: int = 0) -> None:
     """Record one robot's path through the batch (base pose, joints, goals) to MCAP."""
     nxt = batch["next"][env_index].cpu()
-    proprio = nxt[keys.PROPRIO]
-    num_actions = batch["action"].shape[-1]
+    joints = proprio_slice("joint_pos", batch["action"].shape[-1])
     mcap.log_trajectory(
         iteration,
         base_pos=nxt[keys.BASE_POS].numpy(),
         base_quat=nxt[keys.BASE_QUAT].numpy(),
-        joint_pos=proprio[:, 6:6 + num_actions].numpy(),  # relative to the default pose
+        joint_pos=nxt[keys.PROPRIO][:, joints].numpy(),  # relative to the default pose
         goals=nxt[keys.EXPERT_GOALS].numpy(),
         dt=dt,
         env=env_index,

@@ -1,0 +1,133 @@
+"""The depth students (LEGO-H's unified policy and the baselines) and the env they act in:
+the same ``HikingEnv`` with depth on, wrapped with torchrl's ``InitTracker`` and a primer
+for the navigation module's recurrent state."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+from omegaconf import DictConfig, OmegaConf
+from torchrl.data import Composite, Unbounded
+from torchrl.envs import Compose, EnvBase, InitTracker, TensorDictPrimer, TransformedEnv
+
+from legoh import keys
+from legoh.checkpoint import CheckpointError, load_checkpoint
+from legoh.config.algo import NavReward
+from legoh.config.env import CommandConfig, WaypointPass
+from legoh.envs.hiking_env import make_env
+from legoh.modules.students import Student, StudentDims, make_student
+
+PROBE_SHAPES = ((1,), 1)  # any recurrent state shape: a probe env only sizes the student
+
+
+def nav_reward_weights(algo) -> dict[str, float]:
+    """The weights of this stage's navigation terms (``algo.nav_reward``), over
+    ``env.rewards``: the progress form (progress toward the terminus + the reach bonus)
+    or the paper's point-navigation distance. The other forms' terms get 0."""
+    form = NavReward(str(getattr(algo.nav_reward, "value", algo.nav_reward)))
+    weights = dict.fromkeys(("pn_distance", "pn_progress", "pn_line_progress", "pn_reach"), 0.0)
+    if form == NavReward.paper:
+        weights["pn_distance"] = float(algo.pn_distance)
+    else:
+        term = "pn_progress" if form == NavReward.progress else "pn_line_progress"
+        weights[term] = float(algo.pn_progress)
+        weights["pn_reach"] = float(algo.pn_reach)
+    return weights
+
+
+def student_command(cfg: DictConfig) -> CommandConfig:
+    """The forward-speed command of stage 2: the evaluation's, ``env.goal_speed`` for every
+    episode, never zero. The oracle reads the command and the student cannot see it, so a
+    drawn one would make the labels depend on an input the student has no way to infer."""
+    command = OmegaConf.to_object(cfg.env.command)  # a CommandConfig
+    speed = float(cfg.env.goal_speed)
+    return dataclasses.replace(command, speed=[speed, speed], zero_prob=0.0)
+
+
+def student_env_overrides(cfg: DictConfig, evaluation: bool = False) -> dict:
+    """Env settings of stage 2: depth on (unless the student is blind), the stage's
+    navigation reward (:func:`nav_reward_weights`), the student's depth range, the
+    evaluation's speed command (:func:`student_command`); in training, waypoints pass
+    once the robot is past them (``env.waypoint_pass=past``: the oracle's labels do not
+    turn a robot back to a waypoint it walked by). Evaluations keep ``env.waypoint_pass``
+    (radius), so a student's TR and TC count as its oracle's do."""
+    depth = OmegaConf.to_object(cfg.env.depth)  # a DepthConfig
+    depth.enabled = cfg.algo.student != "rma_b"
+    if cfg.algo.depth_far is not None:
+        depth.far = float(cfg.algo.depth_far)
+    rewards = {**dict(cfg.env.rewards), **nav_reward_weights(cfg.algo)}
+    out = {"depth": depth, "rewards": rewards, "command": student_command(cfg)}
+    if not evaluation:
+        out["waypoint_pass"] = WaypointPass.past
+    return out
+
+
+def wrap_student_env(env: EnvBase, state_spec) -> TransformedEnv:
+    """InitTracker (``is_init``) + zeros for the navigation module's recurrent state."""
+    return TransformedEnv(env, Compose(InitTracker(),
+                                       TensorDictPrimer(state_spec, expand_specs=False)))
+
+
+def make_student_env(cfg: DictConfig, num_envs: int, state_shapes: tuple, evaluation=False,
+                     **overrides) -> TransformedEnv:
+    """A stage-2 env (picklable through functools.partial: collector workers build it).
+    ``state_shapes``: :func:`state_shapes` of the student that acts in it."""
+    state_shape, held_dim = state_shapes
+    env = make_env(cfg, num_envs=num_envs, evaluation=evaluation,
+                   **{**student_env_overrides(cfg, evaluation), **overrides})
+    spec = Composite({keys.NAV_STATE: Unbounded(shape=(num_envs, *state_shape)),
+                      keys.NAV_HELD: Unbounded(shape=(num_envs, held_dim))},
+                     shape=(num_envs,))
+    return wrap_student_env(env, spec)
+
+
+def state_shapes(student: Student) -> tuple:
+    """(core state shape, held size) of a student's navigation: what its env must prime."""
+    nav = student.navigation.navigator
+    return tuple(nav.state_shape), int(nav.held_dim)
+
+
+def build_student(cfg: DictConfig, env: EnvBase | None = None) -> Student:
+    """The student of ``cfg.algo`` sized from a stage-2 env's specs (None: a one-robot
+    probe env, built and closed here)."""
+    if env is None:
+        probe = make_student_env(cfg, 1, PROBE_SHAPES)
+        try:
+            return build_student(cfg, probe)
+        finally:
+            probe.close()
+    algo = cfg.algo
+    far = algo.depth_far if algo.depth_far is not None else cfg.env.depth.far
+    dims = StudentDims.from_spec(env.observation_spec, depth_far=float(far))
+    # every student acts with the same fixed noise (docs/unified.md, "The same exploration")
+    return make_student(algo.student, dims, env.action_spec.shape[-1], algo.tanh_bound,
+                        preset=algo.net, core=algo.core, init_std=algo.init_noise_std,
+                        learn_std=False)
+
+
+def read_student_checkpoint(cfg: DictConfig, path: str | Path, student: Student) -> dict:
+    """A stage-2 checkpoint for ``student``; refuses another robot, layout or student."""
+    have = load_checkpoint(path, expect_robot=cfg.robot.name)["extra"].get("student")
+    if have != cfg.algo.student:  # checked first: the clearest message for a mixed-up path
+        raise CheckpointError(f"{path} holds student {have!r}, but this run builds "
+                              f"{cfg.algo.student!r} (algo.student)")
+    return load_checkpoint(path, expect_robot=cfg.robot.name,
+                           expect_layout=student.dims.as_layout())
+
+
+def load_student(cfg: DictConfig, path: str | Path, student: Student) -> dict:
+    """Load a stage-2 checkpoint into ``student`` (:func:`read_student_checkpoint`'s
+    checks); returns the checkpoint."""
+    state = read_student_checkpoint(cfg, path, student)
+    for name, module in student.modules().items():
+        module.load_state_dict(state["models"][name])
+    return state
+
+
+def student_from_checkpoint(cfg: DictConfig, path: str | Path | None) -> Student:
+    """The student of ``cfg.algo`` with the weights of ``path`` (None: untrained)."""
+    student = build_student(cfg)
+    if path:
+        load_student(cfg, path, student)
+    return student
