@@ -20,7 +20,7 @@ yet scored with the benchmark (robots placed along the trail, randomisation on) 
   (e) SR >= 70 % on RandomMix levels 0-4 and >= 50 % on each of Ditch, Hurdle, Gap, Forest.
 
 Writes experiments/results/learn_hike/<robot>-s<seed>[-tag]/: oracle.pt, train.csv,
-evals.csv (walk tests), bench.csv (benchmark per snapshot, category and level),
+sessions.csv (each start: iteration, commit, recipe), evals.csv (walk tests), bench.csv (benchmark per snapshot, category and level),
 milestones.json, summary.md, curve.png and (``--video``) videos of the final policy.
 """
 
@@ -31,6 +31,7 @@ import csv
 import json
 import os
 import shlex
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -91,6 +92,8 @@ def train(args) -> None:
     clocks = [r for r in read_rows(out / "clock.csv") if r["iteration"] <= it_ckpt]
     write_rows(out / "clock.csv", clocks or [{"iteration": 0, "minutes": 0.0}])
     start_min = clocks[-1]["minutes"] if clocks else (rows[-1]["minutes"] if rows else 0.0)
+    record_session(out, it_ckpt, it_ckpt * frames_per_it, start_min,
+                   [*extra, *args.overrides])
     clock = {"train_s": 60.0 * start_min, "tick": time.perf_counter()}
     clock["next_eval"] = clock["train_s"] + (60.0 * args.eval_every if rows else 0.0)
     session_end = clock["train_s"] + 60.0 * args.minutes
@@ -201,6 +204,37 @@ def evaluate_snapshots(args) -> None:
 
 
 # ----------------------------------------------------------------------------- records
+def record_session(out: Path, iteration: int, frames: int, minutes: float,
+                   overrides: list[str]) -> None:
+    """One row of ``sessions.csv`` per (re)start: where it started, the commit and the
+    recipe (its overrides), so the curves can mark where a campaign's recipe changed."""
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
+                            capture_output=True, text=True).stdout.strip() or "unknown"
+    path = out / "sessions.csv"
+    new = not path.exists()
+    with open(path, "a", newline="") as f:
+        w = csv.writer(f)
+        if new:
+            w.writerow(["iteration", "frames", "minutes", "commit", "recipe"])
+        w.writerow([iteration, frames, round(minutes, 2), commit, " ".join(overrides)])
+
+
+def recipe_changes(out: Path) -> list[tuple[float, str]]:
+    """(frames, what changed) for each session whose recipe differs from the one before."""
+    path = out / "sessions.csv"
+    if not path.exists():
+        return []
+    with open(path) as f:
+        rows = list(csv.DictReader(f))
+    changes, before = [], None
+    for r in rows:
+        recipe = set(r["recipe"].split())
+        if before is not None and recipe != before:
+            changes.append((float(r["frames"]), " ".join(sorted(recipe - before))))
+        before = recipe
+    return changes
+
+
 def read_rows(path: Path) -> list[dict]:
     if not path.exists():
         return []
@@ -298,6 +332,11 @@ def plot(out: Path) -> None:
             axes[3].plot(bx, [r.get(f"sr_{c}", np.nan) for r in bench], color=f"C{i}",
                          label=f"{c} 0-4")
         axes[3].axhline(D_SR, color="k", lw=0.5)
+    for frames, what in recipe_changes(out):  # where a session changed the recipe
+        for ax in axes:
+            ax.axvline(frames / 1e6, color="grey", ls="-.", lw=1)
+        axes[0].annotate(what.replace(" ", "\n"), (frames / 1e6, axes[0].get_ylim()[1]),
+                         fontsize=6, va="top", ha="right", color="grey")
     titles = ["training: mean terrain level per category (25-iteration mean)",
               "training: falls / ended episodes per category (dotted: randomisation)",
               "(c) walk test, RandomMix L0 + randomisation", "benchmark SR (%), "

@@ -14,10 +14,10 @@ TINY = ["--envs", "8", "--walk-robots", "2", "--eval-every", "100", "--frames", 
         "collector.overlap=false"]
 
 
-def _run(out: Path, minutes: float) -> str:
+def _run(out: Path, minutes: float, *extra: str) -> str:
     env = {**os.environ, "PYTHONPATH": str(ROOT), "MUJOCO_GL": "egl"}
     done = subprocess.run([sys.executable, str(ROOT / "experiments/learn_hike.py"), "--out",
-                           str(out), "--minutes", str(minutes), *TINY], env=env, cwd=ROOT,
+                           str(out), "--minutes", str(minutes), *TINY, *extra], env=env, cwd=ROOT,
                           capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr[-3000:]
     return done.stdout
@@ -33,11 +33,11 @@ def test_a_campaign_resumes_from_its_committed_files(tmp_path) -> None:
     _run(first, 0.15)
     clone = tmp_path / "session2" / "h1-s0"  # a fresh clone holds the committed files only
     clone.mkdir(parents=True)
-    for name in ("oracle.pt", "train.csv", "clock.csv", "evals.csv"):
+    for name in ("oracle.pt", "train.csv", "clock.csv", "evals.csv", "sessions.csv"):
         shutil.copy(first / name, clone / name)
     it0, min0 = int(_last(clone / "clock.csv")["iteration"]), float(
         _last(clone / "clock.csv")["minutes"])
-    out = _run(clone, 0.3)
+    out = _run(clone, 0.3, "env.curriculum.up=0.7")  # the second session changes the recipe
     assert "resumed from" in out
     rows = list(csv.DictReader(open(clone / "train.csv")))
     iters = [int(float(r["iteration"])) for r in rows]
@@ -45,7 +45,16 @@ def test_a_campaign_resumes_from_its_committed_files(tmp_path) -> None:
     clock = _last(clone / "clock.csv")
     assert int(clock["iteration"]) == iters[-1] and float(clock["minutes"]) > min0
     evals = list(csv.DictReader(open(clone / "evals.csv")))
-    minutes = [float(r["minutes"]) for r in evals]  # at the start, each stop
-    assert len(evals) == 3 and minutes == sorted(minutes) and minutes[2] > min0
+    # at the start and at each stop (one row where a loaded machine's first iteration
+    # already ran past the first session's budget)
+    minutes = [float(r["minutes"]) for r in evals]
+    assert len(evals) >= 2 and minutes == sorted(minutes) and minutes[-1] > min0
     # the warm start was the committed walker (init), the second session did not repeat it
     assert "init=" not in out.split("resumed from")[1]
+    # each start is recorded with its recipe, and the change is found for the curves
+    sys.path.insert(0, str(ROOT / "experiments"))
+    from learn_hike import recipe_changes
+
+    sessions = list(csv.DictReader(open(clone / "sessions.csv")))
+    assert [int(r["iteration"]) for r in sessions] == [0, it0]
+    assert recipe_changes(clone) == [(float(sessions[1]["frames"]), "env.curriculum.up=0.7")]
