@@ -173,7 +173,7 @@ def test_warm_start_loads_the_walker_and_refuses_another_critic(tmp_path) -> Non
     with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
         torch.testing.assert_close(models["actor"](td.clone())[keys.ACTION],
                                    ref["actor"](td.clone())[keys.ACTION])
-    other = compose_config("trail=hike", *SMALL)  # the default 512-256-128 critic
+    other = compose_config("trail=hike", *SMALL, "algo.critic_hidden=[512,256,128]")
     with pytest.raises(CheckpointError, match="algo.critic_hidden"):
         warm_start(other, WALKER, dims, _actor_on(other, WALKER)[2])
     env.close()

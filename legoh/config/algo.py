@@ -41,7 +41,10 @@ class OracleConfig:
     desired_kl: float = 0.01  # adaptive learning rate target
     clip_epsilon: float = 0.2
     entropy_coef: float = 0.01
-    epochs: int = 5
+    # 3 (the paper's 5 is algo.epochs=5): the lean loop (3 epochs, the 256-128-64 critic
+    # below) walked in 24 and 36 minutes against 56 and 50 for 5 epochs and the 512 critic,
+    # with ~1.5x the frames (learn_walk, docs/oracle.md)
+    epochs: int = 3
     minibatches: int = 4
     gamma: float = 0.99
     gae_lambda: float = 0.95
@@ -55,9 +58,10 @@ class OracleConfig:
     # None: a linear action mean (rsl_rl, mjlab); a number B: the paper's B * tanh (EP: 4.8)
     tanh_bound: float | None = None
     max_grad_norm: float = 1.0
-    # the critic's hidden sizes (ELU). The paper gives it the actor's 512-256-128; a
-    # 256-128-64 critic makes the update ~1/3 cheaper (docs/oracle.md, bench_train.md)
-    critic_hidden: list[int] = field(default_factory=lambda: [512, 256, 128])
+    # the critic's hidden sizes (ELU). The paper gives it the actor's 512-256-128
+    # (algo.critic_hidden=[512,256,128]); 256-128-64 makes the update ~1/3 cheaper
+    # (bench_train.md) and is the shipped oracles' (init=pretrained needs the same)
+    critic_hidden: list[int] = field(default_factory=lambda: [256, 128, 64])
     # bfloat16: autocast (objectives/ppo.py); auto: bfloat16 on CPUs with AMX / AVX512-BF16
     # and bf16 GPUs. The fast loop learned to walk in as few frames as float32 (docs/oracle.md)
     update_precision: Precision = Precision.auto
@@ -96,6 +100,7 @@ class UnifiedConfig(OracleConfig):
 
     name: str = "unified"
     stage: Stage = Stage.student
+    epochs: int = 5  # the students' PPO: 3 epochs not measured for them yet
     # the students' update has not been measured in bfloat16 yet (issue "The unified student
     # hikes from vision"): float32 until it is
     update_precision: Precision = Precision.float32

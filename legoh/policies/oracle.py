@@ -88,6 +88,10 @@ def fold_category_onehot(state: dict) -> dict:
     return state
 
 
+# the critic of checkpoints from before extra["critic_hidden"] was written (the default then)
+LEGACY_CRITIC = [512, 256, 128]
+
+
 def oracle_net_config(cfg: DictConfig, state: dict) -> DictConfig:
     """``cfg`` with the network settings a checkpoint was trained with (the head's
     ``algo.tanh_bound``, ``algo.critic_hidden``): what rebuilds its actor and critic."""
@@ -95,7 +99,7 @@ def oracle_net_config(cfg: DictConfig, state: dict) -> DictConfig:
     critic = state.get("extra", {}).get("critic_hidden", algo.get("critic_hidden"))
     return OmegaConf.merge(cfg, {"algo": {
         "tanh_bound": algo.get("tanh_bound", cfg.algo.tanh_bound),
-        "critic_hidden": list(critic or cfg.algo.critic_hidden)}})
+        "critic_hidden": list(critic or LEGACY_CRITIC)}})
 
 
 def load_oracle(cfg: DictConfig, path: str | Path, num_actions: int,

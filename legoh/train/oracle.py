@@ -20,15 +20,11 @@ from legoh.checkpoint import CheckpointError
 from legoh.envs.hiking_env import HikingEnv, make_env
 from legoh.objectives.adaptation import adaptation_loss
 from legoh.objectives.ppo import make_ppo, ppo_update
-from legoh.policies.oracle import build_oracle, load_oracle_checkpoint
+from legoh.policies.oracle import LEGACY_CRITIC, build_oracle, load_oracle_checkpoint
 from legoh.policies.pretrained import resolve_checkpoint
 from legoh.train.algorithm import Algorithm
 from legoh.train.collect import policy_device
 from legoh.train.runner import OnPolicyRunner, Run, training_session
-
-# the critic of checkpoints from before extra["critic_hidden"] was written
-DEFAULT_CRITIC = [512, 256, 128]
-
 
 class OraclePPO(Algorithm):
     """PPO on the oracle's actor and critic, plus the adaptation module's regression of the
@@ -98,7 +94,7 @@ def warm_start(cfg: DictConfig, path: Path, dims, models: dict) -> dict:
     state = load_oracle_checkpoint(path, cfg, dims)
     want = {"algo.critic_hidden": [int(x) for x in cfg.algo.critic_hidden],
             "algo.tanh_bound": cfg.algo.tanh_bound}
-    have = {"algo.critic_hidden": state.get("extra", {}).get("critic_hidden", DEFAULT_CRITIC),
+    have = {"algo.critic_hidden": state.get("extra", {}).get("critic_hidden", LEGACY_CRITIC),
             "algo.tanh_bound": state.get("config", {}).get("algo", {}).get("tanh_bound")}
     for key in want:
         if want[key] != have[key]:
