@@ -175,6 +175,26 @@ def test_dagger_mixture_runs_and_logs_its_share(artefacts, tmp_path):
     assert float(rows[0]["dagger/teacher_acted"]) == 1.0
 
 
+def test_on_iteration_sees_the_student_and_can_stop_training(artefacts, tmp_path):
+    """train_student's hook gets the student's own policy (not DAgger's mixture with the
+    teacher) after each iteration; True stops the run with a checkpoint."""
+    from legoh.train.dagger import TeacherMix
+
+    seen = []
+
+    def hook(it, stats, policy):
+        seen.append((it, policy))
+        return True
+
+    run = train_student(tiny("unified", artefacts, "algo.dagger_mix_iterations=2"), tmp_path,
+                        on_iteration=hook)
+    assert [it for it, _ in seen] == [1] and run.iterations == 1
+    assert load_checkpoint(run.checkpoint)["iteration"] == 1
+    policy = seen[0][1]
+    assert not isinstance(policy, TeacherMix)
+    assert list(policy.module) == list(run.algorithm.student.policy.module)
+
+
 def test_checkpoint_of_another_student_is_refused(artefacts, tmp_path):
     run = train_student(tiny("rma_b", artefacts), tmp_path / "a")
     with pytest.raises(CheckpointError, match="student 'rma_b'"):

@@ -185,9 +185,16 @@ def distill_step(student: Student, batch, cfg: DictConfig, optim, prior_loss) ->
     return {f"distill/{k}": float(v.detach()) for k, v in out.items() if v.numel() == 1}
 
 
-def train_student(cfg: DictConfig, out_dir: Path, resume: str | None = None) -> Run:
+def train_student(cfg: DictConfig, out_dir: Path, resume: str | None = None,
+                  on_iteration=None, resume_hint: str | None = None) -> Run:
     """Train ``cfg.algo.student`` for ``cfg.algo.total_frames`` env steps; the record's
-    ``algorithm`` holds the student and the teacher's path."""
+    ``algorithm`` holds the student and the teacher's path.
+
+    ``on_iteration(it, stats, policy)``, if given, runs after each iteration is logged with
+    the student's own policy (never DAgger's mixture with the teacher: what an evaluation
+    should score); returning True stops training with a checkpoint. Signals and
+    ``resume_hint`` as for :func:`legoh.train.oracle.train_oracle`.
+    """
     teacher_path = ensure_oracle(cfg)  # before the session: it may train an oracle of its own
     with training_session(cfg, out_dir) as stop:
         student = build_student(cfg)
@@ -201,4 +208,6 @@ def train_student(cfg: DictConfig, out_dir: Path, resume: str | None = None) -> 
             runner.resume(resume)
         else:
             algorithm.pretrain_prior()
-        return runner.learn(stop)
+        hook = None if on_iteration is None else (
+            lambda it, stats: on_iteration(it, stats, student.policy))
+        return runner.learn(stop, on_iteration=hook, resume_hint=resume_hint)
