@@ -20,18 +20,17 @@ yet scored with the benchmark (robots placed along the trail, randomisation on) 
   (e) SR >= 70 % on RandomMix levels 0-4 and >= 50 % on each of Ditch, Hurdle, Gap, Forest.
 
 Writes experiments/results/learn_hike/<robot>-s<seed>[-tag]/: oracle.pt, train.csv,
-sessions.csv (each start: iteration, commit, recipe), evals.csv (walk tests), bench.csv (benchmark per snapshot, category and level),
+sessions.csv (each start: iteration, commit, recipe), clock.csv (training minutes per
+iteration), evals.csv (walk tests), bench.csv (benchmark per snapshot, category and level),
 milestones.json, summary.md, curve.png and (``--video``) videos of the final policy.
 """
 
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import os
 import shlex
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -40,6 +39,18 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
+from campaign import (  # noqa: E402
+    Session,
+    add_campaign_arguments,
+    finish_figure,
+    mark_recipe_changes,
+    milestone_lines,
+    plot_training,
+    read_rows,
+    snapshots_to_score,
+    training_row,
+    write_rows,
+)
 from learn_walk import compose_run, eval_env, read_evals, walk_test  # noqa: E402
 
 from legoh.eval.benchmark import rollout_level  # noqa: E402
@@ -82,51 +93,26 @@ def train(args) -> None:
     cfg = compose_run(args.robot, args.seed, "walk", "hike", [*extra, *args.overrides])
     walk_env = eval_env(cfg, "randommix", True, args.walk_robots)
     frames_per_it = cfg.algo.num_envs * cfg.algo.steps_per_env
-    resume = out / "oracle.pt"
-    rows = read_rows(out / "evals.csv")
-    it_ckpt = (int(torch.load(resume, map_location="cpu", weights_only=False)["iteration"])
-               if resume.exists() else 0)
-    rows = [r for r in rows if r["iteration"] <= it_ckpt]  # a killed run: its records to then
-    # the training clock of every iteration (clock.csv), so a resumed run continues from its
-    # checkpoint's minute, not from the last evaluation's
-    clocks = [r for r in read_rows(out / "clock.csv") if r["iteration"] <= it_ckpt]
-    write_rows(out / "clock.csv", clocks or [{"iteration": 0, "minutes": 0.0}])
-    start_min = clocks[-1]["minutes"] if clocks else (rows[-1]["minutes"] if rows else 0.0)
-    record_session(out, it_ckpt, it_ckpt * frames_per_it, start_min,
-                   [*extra, *args.overrides])
-    clock = {"train_s": 60.0 * start_min, "tick": time.perf_counter()}
-    clock["next_eval"] = clock["train_s"] + (60.0 * args.eval_every if rows else 0.0)
-    session_end = clock["train_s"] + 60.0 * args.minutes
+    session = Session(out, out / "oracle.pt", frames_per_it, args.minutes, args.eval_every,
+                      [*extra, *args.overrides])
 
     def on_iteration(it: int, stats: dict, actor) -> bool:
-        now = time.perf_counter()
-        clock["train_s"] += now - clock["tick"]
-        with open(out / "clock.csv", "a") as f:
-            f.write(f"{it},{clock['train_s'] / 60.0:.4f}\n")
-        stop = clock["train_s"] >= session_end
-        if clock["train_s"] >= clock["next_eval"] or stop:
-            clock["next_eval"] += 60.0 * args.eval_every
+        due, stop = session.iteration_done(it)
+        if due:
             torch.save({"iteration": it, "frames": it * frames_per_it,
-                        "minutes": clock["train_s"] / 60.0, "actor": actor.state_dict()},
+                        "minutes": session.minutes, "actor": actor.state_dict()},
                        out / "snapshots" / f"it{it:06d}.pt")
-            row = {"iteration": it, "frames": it * frames_per_it,
-                   "minutes": round(clock["train_s"] / 60.0, 2),
-                   "train_episode_s": stats["episode_frames"] * cfg.sim.dt * cfg.sim.decimation,
-                   "train_fell": stats["fell_frac"], "level_mean": stats["level_mean"],
-                   "randomization": stats.get("randomization", float("nan")),
-                   **{k: v for k, v in stats.items() if k.split("/")[0] in ("level", "fell")}}
+            row = {**session.stamp(it), **training_row(stats, cfg)}
             row.update({f"c_{k}": v for k, v in walk_test(walk_env, actor).items()})
-            rows.append(row)
-            write_rows(out / "evals.csv", rows)
+            session.add_row(row)
             write_summary(out, args)
             print(f"[learn_hike] it {it} {row['minutes']:.1f} min: level {row['level_mean']:.2f}"
                   f", DR {row['randomization']:.2f}, (c) {row['c_walked_share']:.2f}", flush=True)
-        clock["tick"] = time.perf_counter()
+        session.resume_clock()
         return stop
 
     hint = " ".join(["python", *map(shlex.quote, sys.argv)])  # rerun: it resumes from out
-    train_oracle(cfg, out, resume=str(resume) if resume.exists() else None,
-                 on_iteration=on_iteration, resume_hint=hint)
+    train_oracle(cfg, out, resume=session.resume, on_iteration=on_iteration, resume_hint=hint)
     write_summary(out, args)
 
 
@@ -136,10 +122,17 @@ def bench_config(args):
     placed 2-10 m of path from the terminus (the protocol's default), randomisation on,
     30 s, ``--bench-robots`` robots per level (round-robin over the categories)."""
     init = [] if args.robot not in WALKER else LEAN[2:3]  # the critic size the actor needs
-    return compose_run(args.robot, args.seed, "walk", "hike", [
-        *init, f"eval.robots={args.bench_robots}", "eval.runs=1", "eval.variants=2",
-        "eval.levels=[0,1,2,3,4]", "eval.randomization=true", f"eval.seed={1000 + args.seed}",
-        *args.overrides])
+    return compose_run(args.robot, args.seed, "walk", "hike",
+                       [*init, *bench_overrides(args), *args.overrides])
+
+
+def bench_overrides(args) -> list[str]:
+    """The benchmark's eval settings (learn_student scores its students and their
+    teachers with the same): ``--bench-robots`` per level, one run, two variants, levels
+    0-4, randomisation on, seed 1000 + ``--seed``."""
+    return [f"eval.robots={args.bench_robots}", "eval.runs=1", "eval.variants=2",
+            "eval.levels=[0,1,2,3,4]", "eval.randomization=true",
+            f"eval.seed={1000 + args.seed}"]
 
 
 def bench_snapshot(env, actor) -> dict:
@@ -174,18 +167,10 @@ def evaluate_snapshots(args) -> None:
 
     out = run_dir(args)
     rows = read_rows(out / "bench.csv")
-    done = {int(r["iteration"]) for r in rows}
-    snaps = sorted((out / "snapshots").glob("it*.pt"))
     cfg = bench_config(args)
     env = make_eval_env(cfg)
     _, actor, _, _ = build_oracle(env, cfg)
-    last = max((r["minutes"] for r in rows), default=-1e9)
-    for i, path in enumerate(snaps):
-        snap = torch.load(path, map_location="cpu", weights_only=True)
-        newest = i == len(snaps) - 1
-        if snap["iteration"] in done or (snap["minutes"] - last < args.bench_every
-                                         and not newest):
-            continue
+    for _, snap in snapshots_to_score(out, rows, args.bench_every):
         actor.load_state_dict(snap["actor"])
         t0 = time.perf_counter()
         with torch_threads(1):
@@ -193,7 +178,6 @@ def evaluate_snapshots(args) -> None:
                    "minutes": round(snap["minutes"], 2), **bench_snapshot(env, actor.eval())}
         rows.append(row)
         rows.sort(key=lambda r: r["iteration"])
-        last = snap["minutes"]
         write_rows(out / "bench.csv", rows)
         write_summary(out, args)
         print(f"[learn_hike] bench it {row['iteration']} ({row['minutes']:.0f} min): (d) SR "
@@ -204,52 +188,6 @@ def evaluate_snapshots(args) -> None:
 
 
 # ----------------------------------------------------------------------------- records
-def record_session(out: Path, iteration: int, frames: int, minutes: float,
-                   overrides: list[str]) -> None:
-    """One row of ``sessions.csv`` per (re)start: where it started, the commit and the
-    recipe (its overrides), so the curves can mark where a campaign's recipe changed."""
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
-                            capture_output=True, text=True).stdout.strip() or "unknown"
-    path = out / "sessions.csv"
-    new = not path.exists()
-    with open(path, "a", newline="") as f:
-        w = csv.writer(f)
-        if new:
-            w.writerow(["iteration", "frames", "minutes", "commit", "recipe"])
-        w.writerow([iteration, frames, round(minutes, 2), commit, " ".join(overrides)])
-
-
-def recipe_changes(out: Path) -> list[tuple[float, str]]:
-    """(frames, what changed) for each session whose recipe differs from the one before."""
-    path = out / "sessions.csv"
-    if not path.exists():
-        return []
-    with open(path) as f:
-        rows = list(csv.DictReader(f))
-    changes, before = [], None
-    for r in rows:
-        recipe = set(r["recipe"].split())
-        if before is not None and recipe != before:
-            changes.append((float(r["frames"]), " ".join(sorted(recipe - before))))
-        before = recipe
-    return changes
-
-
-def read_rows(path: Path) -> list[dict]:
-    if not path.exists():
-        return []
-    with open(path) as f:
-        return [{k: float(v) for k, v in r.items()} for r in csv.DictReader(f)]
-
-
-def write_rows(path: Path, rows: list[dict]) -> None:
-    fields = list(dict.fromkeys(k for r in rows for k in r))
-    with open(path, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=fields, restval="nan")
-        w.writeheader()
-        w.writerows(rows)
-
-
 def milestones(out: Path) -> dict:
     """First snapshot (frames, minutes) meeting each milestone, from the records."""
     found: dict[str, dict | None] = {"c": None, "d": None, "e": None}
@@ -275,29 +213,9 @@ def write_summary(out: Path, args) -> None:
         "e": f"SR >= {E_SR_MIX:.0f} % on RandomMix levels 0-4 and >= {E_SR_CAT:.0f} % on each "
              "of Ditch, Hurdle, Gap, Forest"}}
     (out / "milestones.json").write_text(json.dumps(meta, indent=2))
-    lines = [f"# learn_hike: {args.robot}, seed {args.seed}", ""]
-    for k, m in found.items():
-        lines.append(f"- ({k}) " + ("not reached" if m is None else
-                                    f"{m['frames']:,} frames, {m['minutes']:.1f} min"))
+    lines = [f"# learn_hike: {args.robot}, seed {args.seed}", "", *milestone_lines(found)]
     (out / "summary.md").write_text("\n".join(lines) + "\n")
     plot(out)
-
-
-def read_train(out: Path) -> dict[str, np.ndarray]:
-    """train.csv as float columns (empty cells NaN)."""
-    with open(out / "train.csv") as f:
-        rows = list(csv.DictReader(f))
-    return {k: np.array([float(r[k]) if r[k] not in ("", None) else np.nan for r in rows])
-            for k in rows[0]}
-
-
-def smooth(y: np.ndarray, k: int = 25) -> np.ndarray:
-    """Running mean over ``k`` iterations, NaNs skipped."""
-    k = max(1, min(k, len(y)))
-    ok = np.isfinite(y)
-    num = np.convolve(np.where(ok, y, 0.0), np.ones(k), "same")
-    den = np.convolve(ok.astype(float), np.ones(k), "same")
-    return np.where(den > 0, num / np.maximum(den, 1e-9), np.nan)
 
 
 def plot(out: Path) -> None:
@@ -312,15 +230,7 @@ def plot(out: Path) -> None:
     e = read_evals(out)
     x = e["frames"] / 1e6
     fig, axes = plt.subplots(1, 4, figsize=(20, 4))
-    t = read_train(out)  # per iteration, smoothed over 25 iterations
-    tx = t["iteration"] * (e["frames"][-1] / max(e["iteration"][-1], 1)) / 1e6
-    for i, c in enumerate(CATEGORIES):
-        if f"level/{c}" in t:
-            axes[0].plot(tx, smooth(t[f"level/{c}"]), color=f"C{i}", label=c)
-            axes[1].plot(tx, smooth(t[f"fell/{c}"]), color=f"C{i}")
-    axes[0].plot(tx, smooth(t["level_mean"]), "k--", label="all")
-    if "randomization" in t:
-        axes[1].plot(tx, t["randomization"], "k:", label="randomisation strength")
+    plot_training(axes[:2], out, e["frames"][-1] / max(e["iteration"][-1], 1), CATEGORIES)
     axes[2].plot(x, 100 * e["c_walked_share"], "k", label="% walking >= 10 m")
     axes[2].plot(x, 10 * e["c_distance_m"], "k--", label="10 x m toward the terminus")
     axes[2].axhline(80, color="k", lw=0.5)
@@ -332,46 +242,19 @@ def plot(out: Path) -> None:
             axes[3].plot(bx, [r.get(f"sr_{c}", np.nan) for r in bench], color=f"C{i}",
                          label=f"{c} 0-4")
         axes[3].axhline(D_SR, color="k", lw=0.5)
-    for frames, what in recipe_changes(out):  # where a session changed the recipe
-        for ax in axes:
-            ax.axvline(frames / 1e6, color="grey", ls="-.", lw=1)
-        axes[0].annotate(what.replace(" ", "\n"), (frames / 1e6, axes[0].get_ylim()[1]),
-                         fontsize=6, va="top", ha="right", color="grey")
+    mark_recipe_changes(out, axes)  # where a session changed the recipe
     titles = ["training: mean terrain level per category (25-iteration mean)",
               "training: falls / ended episodes per category (dotted: randomisation)",
               "(c) walk test, RandomMix L0 + randomisation", "benchmark SR (%), "
               "randomisation on"]
-    for ax, title in zip(axes, titles, strict=True):
-        ax.set_title(title, fontsize=9)
-        ax.set_xlabel("frames (M)")
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(out / "curve.png", dpi=90)
-    plt.close(fig)
+    finish_figure(fig, axes, titles, out / "curve.png")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--robot", default="h1")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--minutes", type=float, default=85.0, help="training minutes now")
-    parser.add_argument("--frames", type=int, default=500_000_000, help="frame budget")
-    parser.add_argument("--envs", type=int, default=512, help="algo.num_envs")
-    parser.add_argument("--eval-every", type=float, default=6.0, help="training minutes")
+    add_campaign_arguments(parser, envs=512, scored="d, e")
     parser.add_argument("--init", default="walker",
                         help="walker (the committed learn_walk walker) | none | PATH")
-    parser.add_argument("--tag", default="", help="suffix of the run folder (a variant)")
-    parser.add_argument("--out", default="", help="run folder (default: results/learn_hike/"
-                        "<robot>-s<seed>[-tag])")
-    parser.add_argument("--walk-robots", type=int, default=16, help="robots of the walk test")
-    parser.add_argument("--plot", action="store_true", help="redraw curve and summary")
-    parser.add_argument("--evaluate", action="store_true",
-                        help="benchmark the snapshots not yet scored (d, e)")
-    parser.add_argument("--bench-robots", type=int, default=80, help="robots per level")
-    parser.add_argument("--bench-every", type=float, default=10.0,
-                        help="training minutes between benchmarked snapshots")
-    parser.add_argument("overrides", nargs="*", help="Hydra overrides")
     args = parser.parse_args()
     if args.plot:
         return write_summary(run_dir(args), args)

@@ -48,9 +48,9 @@ def compose_run(robot: str, seed: int, preset: str, trail: str, extra: list[str]
                                               f"env.reward_preset={preset}", *extra])
 
 
-def eval_env(cfg, trail: str, randomize: bool, robots: int = ROBOTS):
-    """``robots`` robots (16), 30 s episodes, curriculum off; randomisation from the first
-    step or off."""
+def walk_env_settings(cfg, trail: str, randomize: bool) -> tuple:
+    """(config, env overrides) of a walk test on ``trail``: seed 1000 + the run's, 30 s
+    episodes, curriculum off; randomisation from the first step or off."""
     register_configs()
     with initialize_config_dir(str(ROOT / "conf"), version_base="1.3"):
         base = compose("config", overrides=[f"trail={trail}"])
@@ -60,8 +60,13 @@ def eval_env(cfg, trail: str, randomize: bool, robots: int = ROBOTS):
     rand.schedule = Schedule.steps  # full strength from the first step
     cur = OmegaConf.to_object(run.env.curriculum)
     cur.enabled = False
-    return make_env(run, num_envs=robots, evaluation=True, episode_length_s=SECONDS,
-                    randomization=rand, curriculum=cur)
+    return run, {"episode_length_s": SECONDS, "randomization": rand, "curriculum": cur}
+
+
+def eval_env(cfg, trail: str, randomize: bool, robots: int = ROBOTS):
+    """``robots`` robots (16) in the walk test's env (:func:`walk_env_settings`)."""
+    run, overrides = walk_env_settings(cfg, trail, randomize)
+    return make_env(run, num_envs=robots, evaluation=True, **overrides)
 
 
 def walk_test(env, actor) -> dict:

@@ -53,7 +53,7 @@ def test_a_campaign_resumes_from_its_committed_files(tmp_path) -> None:
     assert "init=" not in out.split("resumed from")[1]
     # each start is recorded with its recipe, and the change is found for the curves
     sys.path.insert(0, str(ROOT / "experiments"))
-    from learn_hike import recipe_changes
+    from campaign import recipe_changes
 
     sessions = list(csv.DictReader(open(clone / "sessions.csv")))
     assert [int(r["iteration"]) for r in sessions] == [0, it0]

@@ -1,0 +1,250 @@
+"""What the learn_* campaigns share: a run folder's training clock across sessions and its
+records (CSV rows, the sessions' recipes, the training log), for ``learn_hike.py`` and
+``learn_student.py``.
+
+A campaign is one command run again, session after session, on a fresh clone holding the
+previous session's committed files (checkpoint, train.csv, clock.csv, evals.csv,
+sessions.csv). :class:`Session` continues its clock from the checkpoint's iteration: the
+minute ``clock.csv`` recorded for it, so the time a killed session spent after its last
+checkpoint is not counted twice, and evaluation time is never counted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import subprocess
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+class Session:
+    """One session of a campaign in run folder ``out``: its records up to the checkpoint,
+    its training clock (minutes, evaluation excluded) and when to evaluate and stop.
+
+    Args:
+        out: the run folder. checkpoint: the run's checkpoint (``oracle.pt``,
+            ``unified.pt``): where the session resumes from when it exists.
+        frames_per_iteration: env steps an iteration. minutes: this session's training
+            budget. eval_every: training minutes between evaluations (the first session
+            evaluates at its first iteration). recipe: the overrides, for ``sessions.csv``.
+    """
+
+    def __init__(self, out: Path, checkpoint: Path, frames_per_iteration: int, minutes: float,
+                 eval_every: float, recipe: list[str]) -> None:
+        self.out, self.checkpoint, self.frames_per_it = out, checkpoint, frames_per_iteration
+        self.eval_every = 60.0 * eval_every
+        it = (int(torch.load(checkpoint, map_location="cpu", weights_only=False)["iteration"])
+              if checkpoint.exists() else 0)
+        # a killed run: its records up to its checkpoint
+        self.rows = [r for r in read_rows(out / "evals.csv") if r["iteration"] <= it]
+        # the training clock of every iteration (clock.csv), so a resumed run continues from
+        # its checkpoint's minute, not from the last evaluation's
+        clocks = [r for r in read_rows(out / "clock.csv") if r["iteration"] <= it]
+        write_rows(out / "clock.csv", clocks or [{"iteration": 0, "minutes": 0.0}])
+        start = (clocks[-1]["minutes"] if clocks else
+                 (self.rows[-1]["minutes"] if self.rows else 0.0))
+        record_session(out, it, it * frames_per_iteration, start, recipe)
+        self.start_iteration, self.train_s = it, 60.0 * start
+        self.next_eval = self.train_s + (self.eval_every if self.rows else 0.0)
+        self.end = self.train_s + 60.0 * minutes
+        self.tick = time.perf_counter()
+
+    @property
+    def resume(self) -> str | None:
+        """The checkpoint to resume from, None for a campaign's first session."""
+        return str(self.checkpoint) if self.checkpoint.exists() else None
+
+    def iteration_done(self, it: int) -> tuple[bool, bool]:
+        """Count the time since the last call as training (and log it to ``clock.csv``);
+        (evaluate now, stop now). Call :meth:`resume_clock` after the evaluation."""
+        self.train_s += time.perf_counter() - self.tick
+        with open(self.out / "clock.csv", "a") as f:
+            f.write(f"{it},{self.train_s / 60.0:.4f}\n")
+        stop = self.train_s >= self.end
+        due = self.train_s >= self.next_eval or stop
+        if due:
+            self.next_eval += self.eval_every
+        return due, stop
+
+    def resume_clock(self) -> None:
+        """Training time counts again from now (an evaluation's time is not training)."""
+        self.tick = time.perf_counter()
+
+    @property
+    def minutes(self) -> float:
+        return self.train_s / 60.0
+
+    def stamp(self, it: int) -> dict:
+        """Where iteration ``it`` stands: iteration, frames, training minutes."""
+        return {"iteration": it, "frames": it * self.frames_per_it,
+                "minutes": round(self.minutes, 2)}
+
+    def add_row(self, row: dict) -> None:
+        """An evaluation's row, appended to ``evals.csv``."""
+        self.rows.append(row)
+        write_rows(self.out / "evals.csv", self.rows)
+
+
+def add_campaign_arguments(parser: argparse.ArgumentParser, envs: int, scored: str) -> None:
+    """The options every campaign takes (``--envs``' default; ``scored``: the milestones
+    ``--evaluate`` scores), and its Hydra overrides."""
+    parser.add_argument("--robot", default="h1")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--minutes", type=float, default=85.0, help="training minutes now")
+    parser.add_argument("--frames", type=int, default=500_000_000, help="frame budget")
+    parser.add_argument("--envs", type=int, default=envs, help="algo.num_envs")
+    parser.add_argument("--eval-every", type=float, default=6.0, help="training minutes")
+    parser.add_argument("--tag", default="", help="suffix of the run folder (a variant)")
+    parser.add_argument("--out", default="", help="run folder (default: experiments/results/"
+                        "<campaign>/<robot>[-<algo>]-s<seed>[-tag])")
+    parser.add_argument("--walk-robots", type=int, default=16, help="robots of the walk test")
+    parser.add_argument("--plot", action="store_true", help="redraw curve and summary")
+    parser.add_argument("--evaluate", action="store_true",
+                        help=f"benchmark the snapshots not yet scored ({scored})")
+    parser.add_argument("--bench-robots", type=int, default=80, help="robots per level")
+    parser.add_argument("--bench-every", type=float, default=10.0,
+                        help="training minutes between benchmarked snapshots")
+    parser.add_argument("overrides", nargs="*", help="Hydra overrides")
+
+
+def training_row(stats: dict, cfg) -> dict:
+    """An iteration's training scalars for ``evals.csv``: episode length (s), falls among
+    ended episodes, mean level, randomisation strength, level and falls per category."""
+    return {"train_episode_s": stats["episode_frames"] * cfg.sim.dt * cfg.sim.decimation,
+            "train_fell": stats["fell_frac"], "level_mean": stats["level_mean"],
+            "randomization": stats.get("randomization", float("nan")),
+            **{k: v for k, v in stats.items() if k.split("/")[0] in ("level", "fell")}}
+
+
+def snapshots_to_score(out: Path, rows: list[dict], bench_every: float):
+    """(path, snapshot) of each snapshot in ``out/snapshots`` not yet in ``rows`` (the
+    scored ones), at least ``bench_every`` training minutes after the last scored one, and
+    always the newest."""
+    done = {int(r["iteration"]) for r in rows}
+    last = max((r["minutes"] for r in rows), default=-1e9)
+    snaps = sorted((out / "snapshots").glob("it*.pt"))
+    for i, path in enumerate(snaps):
+        snap = torch.load(path, map_location="cpu", weights_only=True)
+        newest = i == len(snaps) - 1
+        if snap["iteration"] in done or (snap["minutes"] - last < bench_every and not newest):
+            continue
+        last = snap["minutes"]
+        yield path, snap
+
+
+def milestone_lines(found: dict) -> list[str]:
+    """summary.md's line per milestone: frames and minutes, or not reached."""
+    return [f"- ({k}) " + ("not reached" if m is None else
+                           f"{m['frames']:,} frames, {m['minutes']:.1f} min")
+            for k, m in found.items()]
+
+
+def finish_figure(fig, axes, titles: list[str], path: Path) -> None:
+    """Titles, frames (M) on x, grids and legends; saved to ``path`` and closed."""
+    import matplotlib.pyplot as plt
+
+    for ax, title in zip(axes, titles, strict=True):
+        ax.set_title(title, fontsize=9)
+        ax.set_xlabel("frames (M)")
+        ax.grid(alpha=0.3)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+def record_session(out: Path, iteration: int, frames: int, minutes: float,
+                   overrides: list[str]) -> None:
+    """One row of ``sessions.csv`` per (re)start: where it started, the commit and the
+    recipe (its overrides), so the curves can mark where a campaign's recipe changed."""
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
+                            capture_output=True, text=True).stdout.strip() or "unknown"
+    path = out / "sessions.csv"
+    new = not path.exists()
+    with open(path, "a", newline="") as f:
+        w = csv.writer(f)
+        if new:
+            w.writerow(["iteration", "frames", "minutes", "commit", "recipe"])
+        w.writerow([iteration, frames, round(minutes, 2), commit, " ".join(overrides)])
+
+
+def recipe_changes(out: Path) -> list[tuple[float, str]]:
+    """(frames, what changed) for each session whose recipe differs from the one before."""
+    path = out / "sessions.csv"
+    if not path.exists():
+        return []
+    with open(path) as f:
+        rows = list(csv.DictReader(f))
+    changes, before = [], None
+    for r in rows:
+        recipe = set(r["recipe"].split())
+        if before is not None and recipe != before:
+            changes.append((float(r["frames"]), " ".join(sorted(recipe - before))))
+        before = recipe
+    return changes
+
+
+def mark_recipe_changes(out: Path, axes) -> None:
+    """A vertical line on every axis where a session changed the recipe, the change
+    written on the first."""
+    for frames, what in recipe_changes(out):
+        for ax in axes:
+            ax.axvline(frames / 1e6, color="grey", ls="-.", lw=1)
+        axes[0].annotate(what.replace(" ", "\n"), (frames / 1e6, axes[0].get_ylim()[1]),
+                         fontsize=6, va="top", ha="right", color="grey")
+
+
+def plot_training(axes, out: Path, frames_per_iteration: float, categories) -> None:
+    """From ``train.csv`` (25-iteration means): the mean terrain level per category on
+    ``axes[0]``, the falls among ended episodes per category and the randomisation strength
+    on ``axes[1]``, against frames (M)."""
+    t = read_train(out)
+    tx = t["iteration"] * frames_per_iteration / 1e6
+    for i, c in enumerate(categories):
+        if f"level/{c}" in t:
+            axes[0].plot(tx, smooth(t[f"level/{c}"]), color=f"C{i}", label=c)
+            axes[1].plot(tx, smooth(t[f"fell/{c}"]), color=f"C{i}")
+    axes[0].plot(tx, smooth(t["level_mean"]), "k--", label="all")
+    if "randomization" in t:
+        axes[1].plot(tx, t["randomization"], "k:", label="randomisation strength")
+
+
+def read_rows(path: Path) -> list[dict]:
+    """A CSV of numbers as rows of floats ([] when the file does not exist)."""
+    if not path.exists():
+        return []
+    with open(path) as f:
+        return [{k: float(v) for k, v in r.items()} for r in csv.DictReader(f)]
+
+
+def write_rows(path: Path, rows: list[dict]) -> None:
+    """Rows to CSV, the union of their keys as columns (a missing cell: nan)."""
+    fields = list(dict.fromkeys(k for r in rows for k in r))
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=fields, restval="nan")
+        w.writeheader()
+        w.writerows(rows)
+
+
+def read_train(out: Path) -> dict[str, np.ndarray]:
+    """train.csv as float columns (empty cells NaN)."""
+    with open(out / "train.csv") as f:
+        rows = list(csv.DictReader(f))
+    return {k: np.array([float(r[k]) if r[k] not in ("", None) else np.nan for r in rows])
+            for k in rows[0]}
+
+
+def smooth(y: np.ndarray, k: int = 25) -> np.ndarray:
+    """Running mean over ``k`` iterations, NaNs skipped."""
+    k = max(1, min(k, len(y)))
+    ok = np.isfinite(y)
+    num = np.convolve(np.where(ok, y, 0.0), np.ones(k), "same")
+    den = np.convolve(ok.astype(float), np.ones(k), "same")
+    return np.where(den > 0, num / np.maximum(den, 1e-9), np.nan)

@@ -1,0 +1,95 @@
+"""A student campaign resumes from what a session commits (the run folder's unified.pt,
+train.csv, clock.csv, evals.csv and sessions.csv, without the git-ignored snapshots), its
+snapshots are benchmarked beside their teacher, and the teacher defaults to the shipped
+oracle, else the hiking campaign's."""
+
+import csv
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+TEACHER = ROOT / "experiments/results/learn_hike/h1-s0/oracle.pt"
+TINY = ["--envs", "4", "--walk-robots", "2", "--eval-every", "100", "--frames", "10000000",
+        "--teacher", str(TEACHER), "algo.net=small", "algo.steps_per_env=8", "algo.epochs=1",
+        "algo.minibatches=2", "algo.distill_epochs=1", "algo.prior_pretrain_frames=32",
+        "algo.prior_pretrain_steps=2"]
+SMALL_MAP = ["trail.variants=1", "trail.levels=2"]  # training only: the benchmark needs 0-4
+
+
+def _run(out: Path, *extra: str) -> str:
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "MUJOCO_GL": "egl"}
+    done = subprocess.run([sys.executable, str(ROOT / "experiments/learn_student.py"), "--out",
+                           str(out), *TINY, *extra], env=env, cwd=ROOT, capture_output=True,
+                          text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    return done.stdout
+
+
+def _rows(path: Path) -> list[dict]:
+    with open(path) as f:
+        return list(csv.DictReader(f))
+
+
+@pytest.mark.skipif(not TEACHER.is_file(), reason="no committed hiking oracle")
+def test_a_student_campaign_resumes_from_its_committed_files(tmp_path) -> None:
+    first = tmp_path / "session1" / "h1-unified-s0"
+    _run(first, "--minutes", "0.1", *SMALL_MAP)
+    clone = tmp_path / "session2" / "h1-unified-s0"  # a fresh clone: the committed files only
+    clone.mkdir(parents=True)
+    for name in ("unified.pt", "train.csv", "clock.csv", "evals.csv", "sessions.csv"):
+        shutil.copy(first / name, clone / name)
+    it0 = int(_rows(clone / "clock.csv")[-1]["iteration"])
+    min0 = float(_rows(clone / "clock.csv")[-1]["minutes"])
+    out = _run(clone, "--minutes", "0.2", *SMALL_MAP, "algo.lr=1e-4")  # a recipe change
+    assert "resumed from" in out and "pre-trained" not in out.split("resumed from")[1]
+    iters = [int(float(r["iteration"])) for r in _rows(clone / "train.csv")]
+    assert iters == list(range(1, len(iters) + 1)) and iters[-1] > it0  # one history
+    clock = _rows(clone / "clock.csv")[-1]
+    assert int(clock["iteration"]) == iters[-1] and float(clock["minutes"]) > min0
+    # a walk test at the start and at each stop, from depth on flat ground
+    evals = _rows(clone / "evals.csv")
+    minutes = [float(r["minutes"]) for r in evals]
+    assert len(evals) >= 2 and minutes == sorted(minutes) and minutes[-1] > min0
+    assert 0.0 <= float(evals[-1]["s1_walked_share"]) <= 1.0
+    sys.path.insert(0, str(ROOT / "experiments"))
+    from campaign import recipe_changes
+
+    sessions = _rows(clone / "sessions.csv")
+    assert [int(r["iteration"]) for r in sessions] == [0, it0]
+    assert "teacher_sha=" in sessions[0]["recipe"]
+    assert recipe_changes(clone) == [(float(sessions[1]["frames"]), "algo.lr=1e-4")]
+
+    # the benchmark of the session's snapshot, its teacher scored once and cached
+    bench = ["--bench-robots", "5", "eval.seconds=0.2"]
+    out = _run(clone, "--evaluate", *bench)
+    assert "teacher" in out and "bench it" in out
+    row = _rows(clone / "bench.csv")[-1]
+    assert int(row["iteration"]) == iters[-1]
+    assert {"d_sr", "teacher_d_sr", "s2_ratio", "s3_ratio_gap"} <= set(row)
+    cache = json.loads((clone / "teacher.json").read_text())
+    assert len(cache) == 1 and "d_sr" in next(iter(cache.values()))["row"]
+    meta = json.loads((clone / "milestones.json").read_text())
+    assert set(meta["milestones"]) == {"s1", "s2", "s3"} and (clone / "curve.png").is_file()
+
+
+def test_the_teacher_is_the_shipped_oracle_else_the_hiking_one(tmp_path, monkeypatch, capsys):
+    sys.path.insert(0, str(ROOT / "experiments"))
+    import learn_student
+
+    monkeypatch.setattr("legoh.policies.pretrained.PRETRAINED_DIR", tmp_path)
+    hiking = tmp_path / "hike.pt"
+    hiking.write_bytes(b"an oracle")
+    monkeypatch.setitem(learn_student.HIKING_ORACLE, "h1", hiking)
+    assert learn_student.resolve_teacher("h1", "pretrained") == hiking
+    assert "no pretrained/h1_oracle.pt yet" in capsys.readouterr().out
+    (tmp_path / "h1_oracle.pt").write_bytes(b"shipped")
+    assert learn_student.resolve_teacher("h1", "pretrained") == tmp_path / "h1_oracle.pt"
+    assert learn_student.resolve_teacher("h1", "some/path.pt") == Path("some/path.pt")
+    with pytest.raises(SystemExit, match="--teacher PATH"):
+        learn_student.resolve_teacher("g1", "pretrained")
