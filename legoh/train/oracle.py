@@ -26,6 +26,7 @@ from legoh.train.algorithm import Algorithm
 from legoh.train.collect import policy_device
 from legoh.train.runner import OnPolicyRunner, Run, training_session
 
+
 class OraclePPO(Algorithm):
     """PPO on the oracle's actor and critic, plus the adaptation module's regression of the
     privileged latent from the proprio history (its own optimiser)."""
