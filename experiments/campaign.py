@@ -172,7 +172,9 @@ def record_session(out: Path, iteration: int, frames: int, minutes: float,
         w = csv.writer(f)
         if new:
             w.writerow(["iteration", "frames", "minutes", "commit", "recipe"])
-        w.writerow([iteration, frames, round(minutes, 2), commit, " ".join(overrides)])
+        # paths relative to the repository: each session runs on its own clone
+        recipe = " ".join(overrides).replace(f"{ROOT}/", "")
+        w.writerow([iteration, frames, round(minutes, 2), commit, recipe])
 
 
 def recipe_changes(out: Path) -> list[tuple[float, str]]:

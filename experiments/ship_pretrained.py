@@ -13,6 +13,7 @@ frames, training minutes, the commit that trained it, the recipe and the table.
 from __future__ import annotations
 
 import argparse
+import csv
 import json
 import os
 import shutil
@@ -64,8 +65,7 @@ def main() -> None:
         state["config"]["algo"]["steps_per_env"])
     card = {"robot": args.robot, "file": dst.name, "iteration": int(state["iteration"]),
             "frames": frames, "minutes": minutes, "run": str(run),
-            "commit": subprocess.run(["git", "rev-parse", "--short", "HEAD"],
-                                     capture_output=True, text=True).stdout.strip(),
+            "commit": trained_by(run),
             "recipe": f"python experiments/learn_hike.py --robot {args.robot} (a campaign of "
                       "runs; the run folder's summary.md and curve.png)",
             "megabytes": round(dst.stat().st_size / 2**20, 2),
@@ -73,6 +73,18 @@ def main() -> None:
     (PRETRAINED_DIR / f"{args.robot}_oracle.json").write_text(json.dumps(card, indent=2))
     write_readme()
     print((PRETRAINED_DIR / "README.md").read_text())
+
+
+def trained_by(run: Path) -> str:
+    """The commit of the campaign's last session (``sessions.csv``), else this checkout's."""
+    sessions = run / "sessions.csv"
+    if sessions.exists():
+        with open(sessions) as f:
+            rows = list(csv.DictReader(f))
+        if rows and rows[-1]["commit"] not in ("", "unknown", "unrecorded"):
+            return rows[-1]["commit"]
+    return subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
+                          text=True).stdout.strip()
 
 
 def write_readme() -> None:
@@ -90,8 +102,8 @@ def write_readme() -> None:
         lines += [f"## `{c['file']}` ({c['robot'].upper()} oracle, {c['megabytes']} MB)", "",
                   f"- {c['frames']:,} frames ({c['iteration']} iterations), {minutes} minutes "
                   f"of training on a 2-core CPU, from the learn_walk walker",
-                  f"- trained by commit `{c['commit']}`: {c['recipe']}; run folder "
-                  f"`{c['run']}`", "", c["benchmark"], ""]
+                  f"- trained by commit `{c['commit']}` (its last session): {c['recipe']}; "
+                  f"run folder `{c['run']}`", "", c["benchmark"], ""]
     (PRETRAINED_DIR / "README.md").write_text("\n".join(lines))
 
 

@@ -57,4 +57,5 @@ def test_a_campaign_resumes_from_its_committed_files(tmp_path) -> None:
 
     sessions = list(csv.DictReader(open(clone / "sessions.csv")))
     assert [int(r["iteration"]) for r in sessions] == [0, it0]
+    assert str(ROOT) not in (clone / "sessions.csv").read_text()  # clones differ in path
     assert recipe_changes(clone) == [(float(sessions[1]["frames"]), "env.curriculum.up=0.7")]
