@@ -124,17 +124,18 @@ def training_row(stats: dict, cfg) -> dict:
 
 def snapshots_to_score(out: Path, rows: list[dict], bench_every: float):
     """(path, snapshot) of each snapshot in ``out/snapshots`` not yet in ``rows`` (the
-    scored ones), at least ``bench_every`` training minutes after the last scored one, and
-    always the newest."""
+    scored ones), at least ``bench_every`` training minutes from every scored one (so a gap
+    before the newest scored snapshot is filled too), and always the newest."""
     done = {int(r["iteration"]) for r in rows}
-    last = max((r["minutes"] for r in rows), default=-1e9)
+    scored = [r["minutes"] for r in rows]
     snaps = sorted((out / "snapshots").glob("it*.pt"))
     for i, path in enumerate(snaps):
         snap = torch.load(path, map_location="cpu", weights_only=True)
         newest = i == len(snaps) - 1
-        if snap["iteration"] in done or (snap["minutes"] - last < bench_every and not newest):
+        far = all(abs(snap["minutes"] - m) >= bench_every for m in scored)
+        if snap["iteration"] in done or not (far or newest):
             continue
-        last = snap["minutes"]
+        scored.append(snap["minutes"])
         yield path, snap
 
 
