@@ -87,9 +87,8 @@ def train(args) -> None:
     out.mkdir(parents=True, exist_ok=True)
     (out / "snapshots").mkdir(exist_ok=True)
     init = args.init if args.init != "walker" else str(WALKER.get(args.robot, "none"))
-    extra = [f"algo.total_frames={args.frames}", f"algo.num_envs={args.envs}", *LEAN, *HIKE]
-    if init != "none":
-        extra.append(f"init={init}")
+    extra = [f"algo.total_frames={args.frames}", f"algo.num_envs={args.envs}", *LEAN, *HIKE,
+             f"init={init}"]
     cfg = compose_run(args.robot, args.seed, "walk", "hike", [*extra, *args.overrides])
     walk_env = eval_env(cfg, "randommix", True, args.walk_robots)
     frames_per_it = cfg.algo.num_envs * cfg.algo.steps_per_env

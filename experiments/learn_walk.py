@@ -105,7 +105,7 @@ def main() -> None:
     out = OUT / f"{args.robot}-{args.preset}-s{args.seed}{'-' + args.tag if args.tag else ''}"
     out.mkdir(parents=True, exist_ok=True)
     cfg = compose_run(args.robot, args.seed, args.preset, args.trail,
-                      [f"algo.total_frames={args.frames}", *args.overrides])
+                      [f"algo.total_frames={args.frames}", "init=none", *args.overrides])
     envs = {"b": eval_env(cfg, "flat", False), "c": eval_env(cfg, "randommix", True)}
     frames_per_it = cfg.algo.num_envs * cfg.algo.steps_per_env
     milestones: dict[str, dict | None] = {"a": None, "b": None, "c": None}

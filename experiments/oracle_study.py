@@ -58,7 +58,7 @@ def main() -> None:
                         help="continue the last study's training up to --frames, then re-evaluate")
     args = parser.parse_args()
     cfg = compose_config(f"robot={args.robot}", f"trail={args.trail}",
-                         f"algo.total_frames={args.frames}")
+                         f"algo.total_frames={args.frames}", "init=none")  # vs its untrained start
     checkpoint = OUT / "train" / "oracle.pt"
     resume = str(checkpoint) if args.resume and checkpoint.exists() else None
     if not resume:

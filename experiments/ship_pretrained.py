@@ -19,6 +19,7 @@ import os
 import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 os.environ.setdefault("MUJOCO_GL", "egl")
@@ -28,9 +29,10 @@ import torch  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from learn_walk import compose_run  # noqa: E402
 
+from legoh.config.compose import compose_config  # noqa: E402
 from legoh.eval.benchmark import evaluate, make_eval_env  # noqa: E402
 from legoh.policies.oracle import load_oracle_actor  # noqa: E402
-from legoh.policies.pretrained import PRETRAINED_DIR  # noqa: E402
+from legoh.policies.pretrained import PRETRAINED_DIR, benchmark_protocol  # noqa: E402
 
 MAX_BYTES = 10 * 2**20
 
@@ -38,10 +40,21 @@ MAX_BYTES = 10 * 2**20
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robot", default="h1")
-    parser.add_argument("--run", required=True, help="a learn_hike run folder")
+    parser.add_argument("--run", help="a learn_hike run folder (required unless --main-job-only)")
     parser.add_argument("--robots", type=int, default=80, help="robots per level and run")
     parser.add_argument("--runs", type=int, default=2)
+    parser.add_argument("--main-job-only", action="store_true",
+                        help="only (re)score the shipped file on the main job's protocol")
     args = parser.parse_args()
+    card_path = PRETRAINED_DIR / f"{args.robot}_oracle.json"
+    if args.main_job_only:
+        card = json.loads(card_path.read_text())
+        card["main_job"] = main_job_reference(args.robot)
+        card_path.write_text(json.dumps(card, indent=2))
+        print(json.dumps(card["main_job"]["rows"]["overall"]))
+        return
+    if not args.run:
+        parser.error("--run is required (a learn_hike run folder)")
     run = Path(args.run)
     src = run / "oracle.pt"
     if src.stat().st_size > MAX_BYTES:
@@ -69,10 +82,27 @@ def main() -> None:
             "recipe": f"python experiments/learn_hike.py --robot {args.robot} (a campaign of "
                       "runs; the run folder's summary.md and curve.png)",
             "megabytes": round(dst.stat().st_size / 2**20, 2),
-            "benchmark": Path(result["paths"]["markdown"]).read_text()}
-    (PRETRAINED_DIR / f"{args.robot}_oracle.json").write_text(json.dumps(card, indent=2))
+            "benchmark": Path(result["paths"]["markdown"]).read_text(),
+            "main_job": main_job_reference(args.robot)}
+    card_path.write_text(json.dumps(card, indent=2))
     write_readme()
     print((PRETRAINED_DIR / "README.md").read_text())
+
+
+def main_job_reference(robot: str) -> dict:
+    """The shipped file scored on the main job's own benchmark (``python run.py
+    robot=<robot>``: its trail, eval protocol and seed), which the main job prints beside
+    its own table (``legoh.app.print_beside_shipped``)."""
+    cfg = compose_config(f"robot={robot}")
+    env = make_eval_env(cfg)
+    actor = load_oracle_actor(cfg, "pretrained", env)
+    env.close()
+    with tempfile.TemporaryDirectory() as tmp:
+        result = evaluate(cfg, actor, tmp, label=f"{robot}_oracle")
+    rows = {**result["rows"], **result["levels"]}
+    return {"protocol": benchmark_protocol(cfg),
+            "rows": {name: {m: list(v) for m, v in row.items()} for name, row in rows.items()
+                     if name == "overall" or name.startswith("level")}}
 
 
 def trained_by(run: Path) -> str:

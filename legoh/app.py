@@ -61,6 +61,7 @@ def train_and_evaluate(cfg: DictConfig, out_dir: Path) -> None:
         deployed = export_student(student, out_dir / "policy.ts", meta=export_meta(cfg))
         print(f"[legoh] deployable policy: {deployed} (TorchScript, docs/unified.md)")
     print(Path(result["paths"]["markdown"]).read_text())
+    print_beside_shipped(cfg, result)
     print(f"[legoh] checkpoint:        {run.checkpoint}")
     print(f"[legoh] training log:      {run.csv} (CSV), {run.mcap} (MCAP)")
     curve = plot_learning_curve(run.csv, out_dir / "learning_curve.png",
@@ -70,6 +71,34 @@ def train_and_evaluate(cfg: DictConfig, out_dir: Path) -> None:
     print(f"[legoh] learning curve:    {curve}")
     for name, path in result["paths"].items():
         print(f"[legoh] benchmark {name + ':':13s} {path}")
+    if cfg.algo.stage == Stage.oracle and cfg.video:
+        from legoh.play import render_policy_video
+
+        film = render_policy_video(cfg, run.policy, out_dir / "play.mp4")
+        print(f"[legoh] video:             {film['video']} (robot 0 on level "
+              f"{max(cfg.eval.levels)}: {film['distance']:.1f} m toward the terminus, "
+              f"{'fell' if film['fell'] else 'did not fall'}; filmstrip {film['filmstrip']})")
+
+
+def print_beside_shipped(cfg: DictConfig, result: dict) -> None:
+    """This run's overall and per-level rows beside the shipped policy's on the same
+    protocol (its card records them), when it has them."""
+    from legoh.eval.metrics import to_markdown
+    from legoh.policies.pretrained import shipped_reference
+
+    stage = "oracle" if cfg.algo.stage == Stage.oracle else "unified"
+    ref = shipped_reference(cfg, stage)
+    if ref is None:
+        return
+    mine = {**result["rows"], **result["levels"]}
+    rows = {}
+    for name in ref:
+        if name in mine:
+            rows[f"{name}: this run"] = mine[name]
+            rows[f"{name}: shipped {cfg.robot.name}_{stage}.pt"] = {
+                k: tuple(v) for k, v in ref[name].items()}
+    print(to_markdown(rows, "Row", f"This run beside the shipped {cfg.robot.name} {stage} "
+                                   "(pretrained/, the same protocol and seed)"))
 
 
 def export_meta(cfg: DictConfig) -> dict:

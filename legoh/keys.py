@@ -55,6 +55,9 @@ RANDOMIZATION = ("info", "randomization")
 CATEGORY = ("info", "category")  # int: index of the env's trail category
 TILE = ("info", "tile")  # int: index of the env's tile in the terrain map
 EPISODE_STEPS = ("info", "episode_steps")  # int: policy steps of the episode so far
+# float: metres of expert path covered toward the terminus this episode (the sum of the
+# path progress pn_progress pays; negative when the robot walked away from it)
+EPISODE_METRES = ("info", "episode_metres")
 WAYPOINT_COUNT = ("info", "waypoint_count")  # int: expert waypoints on the env's trail
 BASE_POS = ("info", "base_pos")  # (3,) float: base position, world frame, m
 BASE_QUAT = ("info", "base_quat")  # (4,) float: base orientation (w, x, y, z), world frame

@@ -272,6 +272,25 @@ def test_robot_at_terminus_reaches(make: EnvFactory) -> None:
     assert flags(out, keys.TRUNCATED) == [False, False]
 
 
+def test_episode_metres_count_the_path_walked_and_restart_with_the_episode(make: EnvFactory
+                                                                           ) -> None:
+    """A robot moved 1 m toward its waypoint reports ~1 m walked, one left standing ~0;
+    a reset episode starts again from 0 (the progress bar's ``walked``)."""
+    env = make(2)
+    td = env.reset()
+    tile, index = int(env.goals.tile[0]), int(env.goals.index[0])
+    toward = torch.as_tensor(env.trails.waypoints[tile][index], dtype=env.sim.qpos.dtype)
+    toward = toward - env.sim.qpos[0, 0:2]
+    env.sim.qpos[0, 0:2] += toward / torch.linalg.vector_norm(toward)
+    out = zero_step(env, td)
+    metres = out[keys.EPISODE_METRES]
+    assert abs(float(metres[0]) - 1.0) < 0.1, metres
+    assert abs(float(metres[1])) < 0.05, metres
+    td = env.reset(out.select().set("_reset", torch.tensor([[True], [False]])))
+    assert float(env.episode_metres[0]) == 0.0
+    assert float(env.episode_metres[1]) == float(metres[1])
+
+
 def test_reach_radius_of_training_and_of_evaluation() -> None:
     """One key each: ``env.reach_radius`` in training, ``eval.reach_radius`` in evaluation."""
     from legoh.envs.hiking_env import make_env

@@ -29,7 +29,7 @@ def test_tiny_run_end_to_end_writes_logs_and_checkpoint(tmp_path: Path) -> None:
     assert len(rows) == 3  # header + 2 iterations
     for column in ("iteration", "loss_objective", "loss_critic", "loss_entropy", "kl_approx",
                    "lr", "frames_per_s", "reward", "level_mean", "loss_adaptation",
-                   "reward/tracking_lin_vel", "reward/feet_phase"):
+                   "reward/tracking_waypoint_vel", "reward/feet_phase", "episode_metres"):
         assert column in header, column
     topics = [topic for topic, _, _ in read_mcap(run.mcap)]
     assert topics.count("scalars") == 2

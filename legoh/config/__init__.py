@@ -71,10 +71,12 @@ class Config:
     seed: int = 0
     device: str = "cpu"  # learner and policy: cpu | cuda | cuda:N | auto (envs: CPU)
     resume: str | None = None  # train: a checkpoint to continue from (a killed run resumes)
-    # train: a new run (own folder, fresh optimiser, curriculum from level 0) starting from
-    # a checkpoint's weights; "pretrained": pretrained/<robot>_oracle.pt
-    init: str | None = None
+    # train (the oracle): a new run (own folder, fresh optimiser, curriculum from level 0)
+    # starting from a checkpoint's weights. "pretrained" (the default): the robot's shipped
+    # pretrained/<robot>_oracle.pt, or from scratch when it ships none; none: from scratch
+    init: str | None = "pretrained"
     checkpoint: str | None = None  # eval, play: the policy; none: the untrained one
+    video: bool = True  # train: the main job ends with a video of its policy (play.mp4)
     stand_seconds: float = 3.0  # s mode=stand holds the default pose before rendering
     # where stage 2 keeps the oracles it trained, keyed by their config, for reuse
     artefacts: str = "artefacts"

@@ -41,7 +41,7 @@ def table6_weights() -> dict[str, float]:
 
 
 def walk_weights() -> dict[str, float]:
-    """The ``walk`` preset (the default): unitree_rl_gym's H1 walking recipe on our terms
+    """The ``walk`` preset (learn_walk's): unitree_rl_gym's H1 walking recipe on our terms
     (exp-kernel velocity tracking, alive bonus, contact phase of a gait clock, swing height).
     Where each term departs from Table 6 and the curves that chose it: docs/oracle.md."""
     return {
@@ -73,6 +73,14 @@ def walk_weights() -> dict[str, float]:
     }
 
 
+def hike_weights() -> dict[str, float]:
+    """The ``hike`` preset (the default): the walk preset with its velocity kernel toward the
+    next expert waypoint instead of along the robot's heading. The heading form paid a
+    circle in full, and session 1 of the hiking campaign learned to walk in circles with it
+    (docs/oracle.md); the shipped oracles were trained with this one."""
+    return {**walk_weights(), "tracking_lin_vel": 0.0, "tracking_waypoint_vel": 1.0}
+
+
 # name -> (weights, clip the step's total at 0)
 REWARD_PRESETS = {
     # legged_gym's defaults around Table 6 (Extreme Parkour trains with them), with its
@@ -80,6 +88,7 @@ REWARD_PRESETS = {
     "table6": (table6_weights, True),
     # every step of a standing robot earns (alive, the kernels), so nothing is clipped
     "walk": (walk_weights, False),
+    "hike": (hike_weights, False),
 }
 
 
@@ -239,8 +248,9 @@ class EnvConfig:
     # The curriculum's covered distance still counts from the trail start.
     spawn_remaining: list[float] | None = None
     divergence_qvel: float = 1.0e3  # |qvel| above this counts as a diverged simulation
-    # reward preset (REWARD_PRESETS): walk (default) | table6 (appendix Table 6 as written)
-    reward_preset: str = "walk"
+    # reward preset (REWARD_PRESETS): hike (default) | walk (learn_walk's flat-ground recipe:
+    # velocity along the heading) | table6 (appendix Table 6 as written)
+    reward_preset: str = "hike"
     # weight per term over the preset's; None keeps the preset's (a term of your own:
     # +env.rewards.my_term=1.0 after registering it with legoh.envs.mdp.rewards.reward_term)
     rewards: dict[str, float | None] = field(default_factory=lambda: dict.fromkeys(

@@ -126,6 +126,7 @@ class HikingEnv(EnvBase):
                                     device=dev) if c.curriculum.enabled
                       else torch.zeros(n, dtype=torch.int64, device=dev))
         self.steps = torch.zeros(n, dtype=torch.int64, device=dev)
+        self.episode_metres = torch.zeros(n, dtype=dt, device=dev)  # keys.EPISODE_METRES
         # the last step's failures (falls): the randomisation gate counts them
         self.fell_last = torch.zeros(n, dtype=torch.bool, device=dev)
         self.ctrl = self.default_pose.expand(n, -1).clone()
@@ -187,6 +188,7 @@ class HikingEnv(EnvBase):
         for event in events.RESET_EVENTS:
             event(self, ids)
         self.steps[ids] = 0
+        self.episode_metres[ids] = 0.0
         for term in self.stateful:
             term.reset(ids)
         if self.depth_cam is not None:
@@ -211,6 +213,7 @@ class HikingEnv(EnvBase):
         self.randomization.step()
         diverged = self._handle_divergence(time_before)
         s = self.state = compute_state(self, action)
+        self.episode_metres += s.path_progress * self.dt
         ends = check_terminations(self.terminations, self, s, diverged)
         s.failed = self.fell_last = ends.failed
         reward, self.reward_parts = rewards.compute_rewards(s, self.reward_terms,

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
+
+from omegaconf import DictConfig, OmegaConf
 
 PRETRAINED_DIR = Path(__file__).resolve().parents[2] / "pretrained"
 
@@ -29,3 +32,39 @@ def shipped_oracle(robot: str) -> Path | None:
         return pretrained_path(robot)
     except FileNotFoundError:
         return None
+
+
+def init_checkpoint(value: str | None, robot: str) -> Path | None:
+    """The checkpoint an ``init=`` setting starts an oracle from: None for ``none`` (or
+    null); for ``pretrained``, the robot's shipped oracle, or None (from scratch, said on the
+    console) when it ships none; else the path."""
+    if value is None or str(value).lower() in ("none", "null", ""):
+        return None
+    if value != "pretrained":
+        return Path(value)
+    shipped = shipped_oracle(robot)
+    if shipped is None:
+        print(f"[legoh] init=pretrained: no pretrained oracle ships for robot {robot!r} "
+              f"({PRETRAINED_DIR}); training from scratch")
+    return shipped
+
+
+def benchmark_protocol(cfg: DictConfig) -> dict:
+    """What makes two benchmark tables comparable: robot, trail, the ``eval`` settings and
+    the seed the evaluation follows."""
+    return {"robot": str(cfg.robot.name), "trail": str(cfg.trail.name), "seed": int(cfg.seed),
+            "eval": OmegaConf.to_container(cfg.eval, resolve=True)}
+
+
+def shipped_reference(cfg: DictConfig, stage: str = "oracle") -> dict | None:
+    """The shipped policy's own rows (``{"overall" | "level <l>": {metric: [mean, std]}}``)
+    on this run's benchmark protocol, from its card ``pretrained/<robot>_<stage>.json``
+    (``experiments/ship_pretrained.py`` records the main job's protocol there); None when no
+    card records this protocol."""
+    card = PRETRAINED_DIR / f"{cfg.robot.name}_{stage}.json"
+    if not card.is_file():
+        return None
+    ref = json.loads(card.read_text()).get("main_job")
+    if not ref or ref["protocol"] != benchmark_protocol(cfg):
+        return None
+    return ref["rows"]

@@ -21,7 +21,7 @@ from legoh.envs.hiking_env import HikingEnv, make_env
 from legoh.objectives.adaptation import adaptation_loss
 from legoh.objectives.ppo import make_ppo, ppo_update
 from legoh.policies.oracle import LEGACY_CRITIC, build_oracle, load_oracle_checkpoint
-from legoh.policies.pretrained import resolve_checkpoint
+from legoh.policies.pretrained import init_checkpoint
 from legoh.train.algorithm import Algorithm
 from legoh.train.collect import policy_device
 from legoh.train.runner import OnPolicyRunner, Run, training_session
@@ -123,8 +123,7 @@ def train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None = None,
         runner = OnPolicyRunner(cfg, env, algorithm, out_dir, functools.partial(make_env, cfg))
         if resume:
             runner.resume(resume)
-        elif cfg.init:
-            init = resolve_checkpoint(cfg.init, cfg.robot.name)
+        elif (init := init_checkpoint(cfg.init, cfg.robot.name)) is not None:
             algorithm.warm_start(init)
             print(f"[legoh] weights from {init} (init=); a fresh optimiser at lr "
                   f"{algorithm.optimizers['ppo'].param_groups[0]['lr']:.2e}, curriculum from "

@@ -138,10 +138,7 @@ class OnPolicyRunner:
             it += 1
             record_iteration(it, iterations, stats, batch, algo, csv, mcap, dt, self.checkpoint)
             bar.update(1)
-            ep = stats["episode_frames"]
-            bar.set_postfix(fps=f"{stats['frames_per_s']:.0f}", reward=f"{stats['reward']:.3f}",
-                            ep_len="-" if np.isnan(ep) else f"{ep * dt:.1f}s",
-                            fell=f"{stats['fell_frac']:.2f}", **alg.progress(stats))
+            bar.set_postfix(progress_line(stats, it * frames_per_batch, dt, alg.progress(stats)))
             if on_iteration is not None and on_iteration(it, stats):
                 self.checkpoint(it)
                 break
@@ -157,6 +154,17 @@ class OnPolicyRunner:
                    mcap=mcap.path, iterations=it)
 
 
+def progress_line(stats: dict, frames: int, dt: float, extra: dict[str, str]) -> dict[str, str]:
+    """The progress bar's fields: frames so far, frames/s, and over the episodes that ended
+    in the iteration: metres walked toward the terminus, seconds, the share that fell."""
+    ep, metres = stats["episode_frames"], stats["episode_metres"]
+    return {"frames": f"{frames / 1e6:.2f}M", "fps": f"{stats['frames_per_s']:.0f}",
+            "walked": "-" if np.isnan(metres) else f"{metres:.1f}m",
+            "ep": "-" if np.isnan(ep) else f"{ep * dt:.1f}s",
+            "falls": f"{100 * stats['fell_frac']:.0f}%", "reward": f"{stats['reward']:.3f}",
+            **extra}
+
+
 def batch_scalars(batch, categories: list[str] | None = None) -> dict[str, float]:
     """Per-iteration means of what the env reported: rewards, each term, levels, outcomes,
     the randomisation strength, and (given the map's ``categories``, when it has more than
@@ -169,6 +177,9 @@ def batch_scalars(batch, categories: list[str] | None = None) -> dict[str, float
         # mean length of the episodes that ended in this batch; NaN when none did (the
         # frames-over-dones ratio it replaces read as the whole batch then)
         "episode_frames": float(ended.float().mean()) if ended.numel() else float("nan"),
+        # metres of path each of those episodes covered toward its terminus
+        "episode_metres": (float(nxt[keys.EPISODE_METRES][nxt["done"].squeeze(-1)].mean())
+                           if ended.numel() else float("nan")),
         "level_mean": float(nxt[keys.LEVEL].float().mean()),
         "reached_frac": float(nxt[keys.REACHED].float().sum() / max(done.sum().item(), 1.0)),
         "fell_frac": float(nxt[keys.FELL].float().sum() / max(done.sum().item(), 1.0)),

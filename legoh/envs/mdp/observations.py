@@ -207,6 +207,7 @@ def info_terms() -> dict[tuple[str, str], ObsFn]:
         keys.WAYPOINT: lambda env, obs: env.goals.index,
         keys.PROGRESS: lambda env, obs: env.goals.progress(env.state.base_xy),
         keys.EPISODE_STEPS: lambda env, obs: env.steps,
+        keys.EPISODE_METRES: lambda env, obs: env.episode_metres,
         keys.EDGE_CONTACTS: lambda env, obs: env.state.feet_on_edge.sum(1),
         keys.FOOT_CONTACTS: lambda env, obs: env.state.feet_contact.sum(1),
         keys.UNSAFE_COLLISIONS: state_of("unsafe_contacts"),

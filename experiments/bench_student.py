@@ -1,0 +1,115 @@
+"""The stage-2 student loop beside the oracle loop: frames/s and where the student's time goes.
+
+    python experiments/bench_student.py [--sizes 64 256] [--iterations 4] [--note "..."]
+
+Per batch size N, in one run (these machines are noisy, so compare within a run):
+  bare env:      HikingEnv.step_and_maybe_reset with random actions, depth off (the physics
+                 and the term tables) and on (``env.depth.backend``'s frames at 10 Hz);
+  oracle loop:   ``train_oracle`` (the default config, the shipped oracle's weights);
+  student loop:  ``train_student`` with ``algo=unified`` (LEGO-H: TC-ViTs + GRU + HLM, the
+                 shipped oracle teaching), frames/s of its iterations after the first, and
+                 the split of an iteration from train.csv's ``time/*`` columns: collection
+                 (env + depth + the student acting), the oracle's labels, the prior's steps,
+                 PPO, the imitation losses.
+Writes experiments/results/bench_student.{md,json}. The target (issue 20): the student loop
+at >= 2,500 frames/s at N = 256 on 2 cores.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import numpy as np  # noqa: E402
+import torch  # noqa: E402
+from omegaconf import OmegaConf  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_train import bare_rate  # noqa: E402
+
+from legoh.config.compose import compose_config  # noqa: E402
+from legoh.envs.hiking_env import make_env  # noqa: E402
+from legoh.eval.curves import read_columns  # noqa: E402
+from legoh.train.oracle import train_oracle  # noqa: E402
+from legoh.train.unified import train_student  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+OUT = ROOT / "experiments" / "results"
+PARTS = ("collect", "labels", "prior", "ppo", "distill")  # the student's time columns
+TARGET = 2500.0
+
+
+def loop(train, cfg, iterations: int) -> dict[str, float]:
+    """frames/s of the loop's iterations after the first, and its mean ``time/*`` split."""
+    frames = cfg.algo.num_envs * cfg.algo.steps_per_env
+    with tempfile.TemporaryDirectory() as tmp:
+        run_cfg = OmegaConf.merge(cfg, {"algo": {"total_frames": frames * iterations}})
+        run = train(run_cfg, Path(tmp))
+        cols = read_columns(run.csv)
+    out = {"fps": float(np.mean(cols["frames_per_s"][1:]))}
+    for part in PARTS:
+        if f"time/{part}" in cols:
+            out[f"s_{part}"] = float(np.mean(cols[f"time/{part}"][1:]))
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sizes", type=int, nargs="+", default=[64, 256])
+    parser.add_argument("--iterations", type=int, default=4)
+    parser.add_argument("--note", default="", help="a line on the conditions of this run")
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    rows = []
+    for n in args.sizes:
+        t0 = time.perf_counter()
+        base = compose_config(f"algo.num_envs={n}")
+        env = make_env(base, num_envs=n)
+        bare = bare_rate(env, max(50, 6000 // n))
+        env.close()
+        student_cfg = compose_config("algo=unified", f"algo.num_envs={n}",
+                                     "algo.prior_pretrain_frames=0")
+        depth = OmegaConf.to_object(student_cfg.env.depth)
+        depth.enabled = True
+        env = make_env(base, num_envs=n, depth=depth)
+        bare_depth = bare_rate(env, max(50, 6000 // n))
+        env.close()
+        oracle = loop(train_oracle, base, args.iterations)
+        student = loop(train_student, student_cfg, args.iterations)
+        total = sum(student.get(f"s_{p}", 0.0) for p in PARTS)
+        row = {"N": n, "bare": bare, "bare_depth": bare_depth, "depth_cost": bare / bare_depth - 1,
+               "oracle_loop": oracle["fps"], "student_loop": student["fps"],
+               "student_over_oracle": student["fps"] / oracle["fps"],
+               **{f"share_{p}": student.get(f"s_{p}", 0.0) / total for p in PARTS},
+               "depth_backend": str(depth.backend.value), "wall_s": time.perf_counter() - t0}
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+    (OUT / "bench_student.json").write_text(json.dumps(
+        {"sizes": rows, "target_fps_at_256": TARGET, "torch_threads": 1, "cpus": os.cpu_count(),
+         "note": args.note}, indent=2))
+    lines = ["# Student loop vs oracle loop (frames/s, one run, 1 torch thread, "
+             f"{os.cpu_count()} CPUs)", "", *([args.note, ""] if args.note else []),
+             f"Target (issue 20): the student loop >= {TARGET:.0f} frames/s at N = 256. Depth "
+             "cost: the env step with depth frames over the one without, minus 1 (depth "
+             "backend in the last column). Student split: shares of one iteration.", "",
+             "| N | bare env | + depth | depth cost | oracle loop | student loop | student / "
+             "oracle | collect | labels | prior | PPO | imitation | depth backend |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    lines += [f"| {r['N']} | {r['bare']:.0f} | {r['bare_depth']:.0f} | {r['depth_cost']:.2f} | "
+              f"{r['oracle_loop']:.0f} | {r['student_loop']:.0f} | "
+              f"{r['student_over_oracle']:.2f} | "
+              + " | ".join(f"{100 * r[f'share_{p}']:.0f} %" for p in PARTS)
+              + f" | {r['depth_backend']} |" for r in rows]
+    (OUT / "bench_student.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()

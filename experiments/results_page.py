@@ -1,0 +1,259 @@
+"""Write docs/results.md from the committed results: the shipped policies' benchmarks beside
+the paper's numbers, the learning campaigns' milestones and curves, filmstrips, and the
+shipped hiker zero-shot on a long "hill" trail.
+
+    python experiments/results_page.py            # the page, from what is committed (seconds)
+    python experiments/results_page.py --hill     # first film + benchmark the shipped H1 oracle
+                                                  # on a hill trail (experiments/results/hill/)
+    python experiments/results_page.py --demo forest   # first the README's GIF (docs/img/)
+
+Nothing on the page is typed by hand: every number is read from a file under
+``pretrained/`` or ``experiments/results/`` (a missing one leaves its section out).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import sys
+from pathlib import Path
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from legoh.eval.metrics import METRICS, column_title  # noqa: E402
+from legoh.eval.paper import TABLE4, TABLE8  # noqa: E402
+
+PAGE = ROOT / "docs" / "results.md"
+RESULTS = ROOT / "experiments" / "results"
+PRETRAINED = ROOT / "pretrained"
+HILL = RESULTS / "hill"
+CATEGORIES = ("randommix", "ditch", "hurdle", "gap", "forest")
+
+
+def rel(path: Path) -> str:
+    """``path`` as a link from docs/."""
+    return os.path.relpath(path, PAGE.parent)
+
+
+def read_table(path: Path) -> dict[str, dict[str, tuple[float, float]]]:
+    """A benchmark.csv as ``{row: {metric: (mean, std)}}``."""
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    return {r["category"]: {m: (float(r[f"{column_title(m)} mean"]),
+                                float(r[f"{column_title(m)} std"])) for m in METRICS}
+            for r in rows}
+
+
+def cell(value: tuple[float, float] | None) -> str:
+    if value is None:
+        return "-"
+    mean, std = value
+    return "n/a" if mean != mean else f"{mean:.1f} ± {std:.1f}"
+
+
+def shipped_section() -> list[str]:
+    lines = ["## The shipped policies", "",
+             "Each `pretrained/<robot>_oracle.pt` is scored by `experiments/ship_pretrained.py` "
+             "with the hiking protocol (robots placed 2-10 m of path from the terminus, "
+             "randomisation on, 30 s, levels 0-4 of each category; "
+             "[metrics.md](metrics.md)). The paper publishes no oracle numbers: beside ours "
+             "stand its Table 8 baselines (depth students EP-H and RMA-B, 256 robots, 5 "
+             "runs) and its Table 4 LEGO-H rows, as the nearest published reference. Our "
+             "protocol is CPU-sized (fewer robots and runs), so read the orderings, not the "
+             "decimals.", ""]
+    cards = sorted(PRETRAINED.glob("*_oracle.json"))
+    if not cards:
+        return lines + ["No policy is shipped yet.", ""]
+    for path in cards:
+        card = json.loads(path.read_text())
+        robot = card["robot"]
+        table = read_table(PRETRAINED / f"{robot}_oracle_eval" / "benchmark.csv")
+        minutes = "n/a" if card.get("minutes") is None else f"{card['minutes']:.0f}"
+        lines += [f"### {robot.upper()} oracle (`pretrained/{card['file']}`)", "",
+                  f"{card['frames']:,} frames, {minutes} minutes of training on a 2-core "
+                  f"CPU (commit `{card['commit']}`, run `{card['run']}`).", "",
+                  "| Category | SR ours | SR EP-H (paper) | SR RMA-B (paper) | TC ours | "
+                  "TR ours | TTF (s) ours | T2R (s) ours | FR ours |",
+                  "|---|---|---|---|---|---|---|---|---|"]
+        for cat in CATEGORIES:
+            if cat not in table:
+                continue
+            ours, paper = table[cat], TABLE8[cat]
+            lines.append(f"| {cat} | {cell(ours['SR'])} | {cell(paper['EP-H']['SR'])} | "
+                         f"{cell(paper['RMA-B']['SR'])} | {cell(ours['TC'])} | "
+                         f"{cell(ours['TR'])} | {cell(ours['TTF'])} | {cell(ours['T2R'])} | "
+                         f"{cell(ours['FR'])} |")
+        if "overall" in table:
+            ref = TABLE4.get(robot, {})
+            lines += ["", f"Overall: SR {cell(table['overall']['SR'])} % (paper, LEGO-H on "
+                          f"{robot.upper()}, Table 4: {cell(ref.get('SR'))} %), TC "
+                          f"{cell(table['overall']['TC'])} % ({cell(ref.get('TC'))}), T2R "
+                          f"{cell(table['overall']['T2R'])} s ({cell(ref.get('T2R'))})."]
+        levels = [k for k in table if k.startswith("level")]
+        if levels:
+            lines += ["", "By level (all categories): " + ", ".join(
+                f"{k} SR {table[k]['SR'][0]:.0f} %" for k in levels) + "."]
+        pic = PRETRAINED / f"{robot}_oracle_eval" / "trajectories.png"
+        if pic.exists():
+            lines += ["", f"![{robot} trajectories]({rel(pic)})"]
+        lines.append("")
+    return lines
+
+
+def milestone_text(stones: dict) -> str:
+    parts = []
+    for name, hit in stones.items():
+        parts.append(f"({name}) " + ("not reached" if hit is None else
+                                     f"{hit['frames'] / 1e6:.1f}M frames / "
+                                     f"{hit['minutes']:.0f} min"))
+    return "; ".join(parts)
+
+
+def campaigns_section() -> list[str]:
+    lines = ["## Learning campaigns", "",
+             "Frames and training minutes (2-core CPU) to each milestone, from each run's "
+             "`milestones.json`; criteria in its `summary.md`.", "",
+             "| Run | Milestones | Curve |", "|---|---|---|"]
+    runs = sorted((RESULTS / "learn_walk").glob("*/milestones.json")) + sorted(
+        (RESULTS / "learn_hike").glob("*/milestones.json")) + sorted(
+        (RESULTS / "learn_student").glob("*/milestones.json"))
+    for path in runs:
+        meta = json.loads(path.read_text())
+        curve = path.parent / "curve.png"
+        name = f"{path.parent.parent.name}/{path.parent.name}"
+        link = f"[curve]({rel(curve)})" if curve.exists() else "-"
+        lines.append(f"| `{name}` | {milestone_text(meta['milestones'])} | {link} |")
+    lines.append("")
+    for path in runs:
+        if path.parent.parent.name == "learn_hike" and (path.parent / "curve.png").exists():
+            lines += [f"![{path.parent.name}]({rel(path.parent / 'curve.png')})", ""]
+    return lines
+
+
+def films_section() -> list[str]:
+    strips = sorted(RESULTS.glob("**/*_filmstrip.png")) + sorted(
+        PRETRAINED.glob("**/*_filmstrip.png"))
+    strips = [s for s in strips if HILL not in s.parents]
+    if not strips:
+        return []
+    lines = ["## Filmstrips", "", "Every strip has its MP4 beside it.", ""]
+    for strip in strips:
+        video = strip.with_name(strip.name.replace("_filmstrip.png", ".mp4"))
+        label = strip.relative_to(ROOT).as_posix()
+        lines += [f"**`{label}`**" + (f" ([video]({rel(video)}))" if video.exists() else ""),
+                  "", f"![{strip.stem}]({rel(strip)})", ""]
+    return lines
+
+
+def hill_section() -> list[str]:
+    summary = HILL / "summary.json"
+    if not summary.exists():
+        return []
+    s = json.loads(summary.read_text())
+    lines = ["## Zero-shot on a hill trail", "",
+             f"The shipped {s['robot'].upper()} oracle on `trail=hill` (level {s['level']}: "
+             f"{s['length_m']:.0f} m of chained RandomMix, Ditch, Hurdle, Gap and Forest over "
+             "a hillside, never seen in training), from the trail start, "
+             f"{s['seconds']:.0f} s. The filmed robot walked {s['film_distance_m']:.1f} m "
+             f"toward the terminus and {'fell' if s['film_fell'] else 'did not fall'}; "
+             f"over {s['robots']} robots: {s['mean_distance_m']:.1f} m on average, "
+             f"{s['fell_share'] * 100:.0f} % fell, {s['reached_share'] * 100:.0f} % reached "
+             f"the terminus. Written by `python experiments/results_page.py --hill`.", "",
+             f"[video]({rel(HILL / 'hill.mp4')})", "",
+             f"![hill filmstrip]({rel(HILL / 'hill_filmstrip.png')})", "",
+             f"![hill trajectories]({rel(HILL / 'trajectories.png')})", ""]
+    return lines
+
+
+def write_page() -> Path:
+    lines = ["# Results", "",
+             "Written by `python experiments/results_page.py` from the committed results; "
+             "do not edit by hand.", ""]
+    for section in (shipped_section, hill_section, campaigns_section, films_section):
+        lines += section()
+    PAGE.write_text("\n".join(lines))
+    return PAGE
+
+
+def film_hill(robot: str, level: int, robots: int, seconds: float) -> None:
+    """The shipped oracle from the start of a hill trail: a video of robot 0, and every
+    robot's path over the map (the benchmark's trajectories picture)."""
+    from legoh.config.compose import compose_config
+    from legoh.eval.benchmark import evaluate, make_eval_env
+    from legoh.play import render_policy_video
+    from legoh.policies.oracle import load_oracle_actor
+
+    cfg = compose_config(f"robot={robot}", "trail=hill", f"eval.robots={robots}",
+                         "eval.runs=1", "eval.variants=1", f"eval.levels=[{level}]",
+                         f"eval.seconds={seconds}", "eval.spawn_remaining=null")
+    env = make_eval_env(cfg)
+    actor = load_oracle_actor(cfg, "pretrained", env)
+    length = float(env.trails_t.length.max())  # m of expert path, start to terminus
+    env.close()
+    HILL.mkdir(parents=True, exist_ok=True)
+    film = render_policy_video(cfg, actor, HILL / "hill.mp4", level=level)
+    result = evaluate(cfg, actor, HILL, label=f"{robot}_oracle on hill")
+    overall = result["rows"]["overall"]
+    summary = {"robot": robot, "level": level, "seconds": seconds, "robots": robots,
+               "length_m": length, "film_distance_m": film["distance"],
+               "film_fell": film["fell"], "mean_distance_m": overall["DW"][0],
+               "fell_share": overall["FR"][0] / 100.0, "reached_share": overall["SR"][0] / 100.0}
+    (HILL / "summary.json").write_text(json.dumps(summary, indent=2))
+    print(json.dumps(summary, indent=2))
+
+
+def film_demo(robot: str, trail: str, width: int = 360, every: int = 3) -> Path:
+    """The README's picture: the shipped oracle as ``python run.py mode=play
+    checkpoint=pretrained trail=<trail>`` films it, as a GIF (``width`` px wide, every
+    ``every``-th frame) in docs/img/."""
+    import imageio.v3 as iio
+    from PIL import Image
+
+    from legoh.config.compose import compose_config
+    from legoh.eval.benchmark import make_eval_env
+    from legoh.play import render_policy_video
+    from legoh.policies.oracle import load_oracle_actor
+
+    cfg = compose_config(f"robot={robot}", f"trail={trail}", "mode=play",
+                         "checkpoint=pretrained")
+    env = make_eval_env(cfg)
+    actor = load_oracle_actor(cfg, "pretrained", env)
+    env.close()
+    out = RESULTS / "demo" / f"{robot}_{trail}.mp4"
+    film = render_policy_video(cfg, actor, out)
+    frames = iio.imread(film["video"])[::every]
+    height = int(round(frames.shape[1] * width / frames.shape[2]))
+    # a 96-colour palette per frame, no dithering: ~3 MB for a 12 s walk (dithered, 10 MB)
+    small = [Image.fromarray(f).resize((width, height), Image.LANCZOS).quantize(
+        colors=96, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE) for f in frames]
+    gif = ROOT / "docs" / "img" / f"demo_{robot}_{trail}.gif"
+    small[0].save(gif, save_all=True, append_images=small[1:], loop=0, optimize=True,
+                  duration=int(round(1000.0 * every / 25.0)))  # play films 25 fps
+    print(f"{gif}: robot 0 walked {film['distance']:.1f} m, "
+          f"{'fell' if film['fell'] else 'did not fall'}")
+    return gif
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--hill", action="store_true", help="film the hill trail first")
+    parser.add_argument("--demo", metavar="TRAIL", help="film the README's GIF on TRAIL")
+    parser.add_argument("--robot", default="h1")
+    parser.add_argument("--level", type=int, default=1, help="the hill trail's level")
+    parser.add_argument("--robots", type=int, default=16)
+    parser.add_argument("--seconds", type=float, default=90.0)
+    args = parser.parse_args()
+    if args.hill:
+        film_hill(args.robot, args.level, args.robots, args.seconds)
+    if args.demo:
+        film_demo(args.robot, args.demo)
+    print(f"wrote {write_page()}")
+
+
+if __name__ == "__main__":
+    main()
