@@ -365,9 +365,12 @@ def unroll(navigation: NavigationModule, batch: TensorDictBase) -> TensorDictBas
     ``GOAL_CORRECTION``.
     """
     outs = []
-    state, held = batch[:, 0].get(keys.NAV_STATE), batch[:, 0].get(keys.NAV_HELD)
-    for t in range(batch.shape[1]):
-        step = batch[:, t].select(*navigation.in_keys).clone(recurse=False)
+    # the keys the module reads, split into T steps once: indexing the whole batch (every
+    # key) at each step took a sixth of the imitation update (profiled at 64 envs)
+    steps = batch.select(*navigation.in_keys).unbind(1)
+    state, held = batch.get(keys.NAV_STATE)[:, 0], batch.get(keys.NAV_HELD)[:, 0]
+    for step in steps:
+        step = step.clone(recurse=False)
         step.set(keys.NAV_STATE, state)
         step.set(keys.NAV_HELD, held)
         step = navigation(step)
