@@ -26,8 +26,7 @@ from omegaconf import DictConfig, OmegaConf  # noqa: E402
 from torchrl.envs.utils import ExplorationType, set_exploration_type, step_mdp  # noqa: E402
 
 from legoh import keys  # noqa: E402
-from legoh.config.algo import Stage  # noqa: E402
-from legoh.eval.benchmark import make_eval_env  # noqa: E402
+from legoh.eval.benchmark import make_eval_env, student_eval_env_fn  # noqa: E402
 from legoh.eval.metrics import distance_walked  # noqa: E402
 from legoh.threads import torch_threads  # noqa: E402
 from legoh.video import (  # noqa: E402
@@ -45,7 +44,7 @@ PLAY_ROBOTS = 4  # robots mode=play runs (robot 0 is filmed; the others give the
 
 def render_policy_video(cfg: DictConfig, actor, out_path: str | Path,
                         seconds: float | None = None, robots: int = PLAY_ROBOTS,
-                        level: int | None = None) -> dict:
+                        level: int | None = None, student=None) -> dict:
     """Run ``actor`` (a TensorDict policy writing ``"action"``; deterministic mode) on
     ``robots`` robots of the evaluation env until each has ended its first episode (reach,
     fall or time-out, as in the benchmark) and film robot 0's.
@@ -55,6 +54,9 @@ def render_policy_video(cfg: DictConfig, actor, out_path: str | Path,
             a ``.gif`` beside it without imageio-ffmpeg); the filmstrip goes next to it as
             ``<stem>_filmstrip.png``. seconds: episode length (default ``eval.seconds``).
         level: trail level (default: the hardest of ``eval.levels``).
+        student: a stage-2 :class:`~legoh.modules.students.Student` whose policy ``actor``
+            is: the film uses its evaluation env (depth on, its recurrent state primed) and
+            shows the depth frame it sees beside the robot.
 
     Returns:
         ``{"video": Path, "filmstrip": Path, "distance": m robot 0 walked toward its
@@ -64,7 +66,9 @@ def render_policy_video(cfg: DictConfig, actor, out_path: str | Path,
     out_path.parent.mkdir(parents=True, exist_ok=True)
     seconds = float(cfg.eval.seconds if seconds is None else seconds)
     level = int(max(cfg.eval.levels) if level is None else level)
-    env = make_eval_env(OmegaConf.merge(cfg, {"eval": {"robots": robots, "seconds": seconds}}))
+    run_cfg = OmegaConf.merge(cfg, {"eval": {"robots": robots, "seconds": seconds}})
+    env = (make_eval_env(run_cfg) if student is None
+           else student_eval_env_fn(run_cfg, student)(0))
     camera = None
     was_training = getattr(actor, "training", False)
     if was_training:
@@ -128,15 +132,15 @@ def main(cfg: DictConfig, out_dir: Path) -> dict:
     """``mode=play``: film ``checkpoint``'s oracle (the untrained one without it)."""
     from legoh.eval.cli import build_actor
 
-    if cfg.algo.stage != Stage.oracle:
-        raise ValueError("mode=play films an oracle (algo=oracle): a student needs the "
-                         "depth env of the benchmark, which this mode does not build")
     checkpoint = OmegaConf.select(cfg, "checkpoint", default=None)
     if not checkpoint:
         warnings.warn("no checkpoint given (checkpoint=<path>): playing an untrained actor",
                       stacklevel=2)
-    actor, _ = build_actor(cfg, checkpoint)
-    result = render_policy_video(cfg, actor, out_dir / "play.mp4")
+    policy, env_fn = build_actor(cfg, checkpoint)
+    if env_fn is None:  # an oracle
+        result = render_policy_video(cfg, policy, out_dir / "play.mp4")
+    else:  # a student (algo=unified, ep_h, ...): its depth env, its depth view in the film
+        result = render_policy_video(cfg, policy.policy, out_dir / "play.mp4", student=policy)
     who = Path(checkpoint).name if checkpoint else "untrained actor"
     print(f"[legoh] {who}: robot 0 walked {result['distance']:.2f} m toward the terminus "
           f"and {'fell' if result['fell'] else 'did not fall'} (mean DW of "

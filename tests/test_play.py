@@ -63,9 +63,17 @@ def test_render_policy_video_of_a_standing_robot(tmp_path: Path) -> None:
     assert not np.array_equal(frames[0], np.zeros_like(frames[0]))
 
 
-def test_play_refuses_a_student(tmp_path: Path) -> None:
-    with pytest.raises(ValueError, match="oracle"):
-        play.main(compose_config("algo=unified"), tmp_path)
+def test_play_films_a_student_with_its_depth_view_beside_the_robot(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """mode=play of a stage-2 student (untrained: no checkpoint) runs it in its own depth env
+    and puts the depth frame it sees beside the robot: frames wider than the view."""
+    monkeypatch.setattr("legoh.policies.pretrained.PRETRAINED_DIR", tmp_path / "none")
+    with pytest.warns(UserWarning, match="untrained"):
+        result = play.main(compose_config("algo=unified", *TINY), tmp_path)
+    frames = imageio.mimread(result["video"])
+    assert frames[0].shape[:2] == (video.HEIGHT, video.WIDTH + video.PANEL_WIDTH)
+    panel = frames[0][:, video.WIDTH:]
+    assert panel.std() > 0  # the depth frame and its labels were drawn
 
 
 def _close_to(image: np.ndarray, rgb: tuple[float, float, float], tol: int = 40) -> int:
