@@ -74,10 +74,13 @@ def train_and_evaluate(cfg: DictConfig, out_dir: Path) -> None:
     if cfg.algo.stage == Stage.oracle and cfg.video:
         from legoh.play import render_policy_video
 
-        film = render_policy_video(cfg, run.policy, out_dir / "play.mp4")
-        print(f"[legoh] video:             {film['video']} (robot 0 on level "
-              f"{max(cfg.eval.levels)}: {film['distance']:.1f} m toward the terminus, "
-              f"{'fell' if film['fell'] else 'did not fall'}; filmstrip {film['filmstrip']})")
+        level = max(cfg.eval.levels)  # the level the trajectories picture shows
+        film = render_policy_video(cfg, run.policy, out_dir / "play.mp4", level=level)
+        sr = result["levels"].get(f"level {level}", {}).get("SR", (float("nan"),))[0]
+        print(f"[legoh] video:             {film['video']} (robot 0 on level {level}: "
+              f"{film['distance']:.1f} m toward the terminus, "
+              f"{'fell' if film['fell'] else 'did not fall'}; the benchmark's SR on that "
+              f"level: {sr:.0f} %; filmstrip {film['filmstrip']})")
 
 
 def print_beside_shipped(cfg: DictConfig, result: dict) -> None:

@@ -13,6 +13,7 @@ from legoh.envs.mdp.rewards import preset_weights
 from legoh.eval.metrics import METRICS
 from legoh.policies.pretrained import PRETRAINED_DIR, benchmark_protocol, init_checkpoint
 from legoh.train.oracle import train_oracle
+from legoh.train.runner import progress_line
 from tests.conftest import compose_config
 
 TINY = ("trail=flat", "trail.levels=1", "trail.variants=1", "algo.num_envs=4",
@@ -75,3 +76,14 @@ def test_the_benchmark_is_printed_beside_the_shipped_one_on_the_same_protocol(
     other = compose_config(*TINY, "eval.robots=3")  # another protocol: nothing to set beside
     app.print_beside_shipped(other, result)
     assert capsys.readouterr().out == ""
+
+
+def test_progress_bar_shows_frames_metres_and_falls_of_the_ended_episodes() -> None:
+    stats = {"episode_frames": 500.0, "episode_metres": 7.25, "fell_frac": 0.25,
+             "frames_per_s": 4000.0, "reward": 0.03}
+    line = progress_line(stats, 1_500_000, 0.02, {"level": "0.40"})
+    assert line["frames"] == "1.50M" and line["walked"] == "7.2m" and line["ep"] == "10.0s"
+    assert line["falls"] == "25%" and line["level"] == "0.40"
+    quiet = progress_line({**stats, "episode_frames": float("nan"),
+                           "episode_metres": float("nan"), "fell_frac": 0.0}, 6144, 0.02, {})
+    assert quiet["walked"] == quiet["ep"] == quiet["falls"] == "-"  # nothing ended: no 0 %

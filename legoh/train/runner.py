@@ -158,11 +158,11 @@ def progress_line(stats: dict, frames: int, dt: float, extra: dict[str, str]) ->
     """The progress bar's fields: frames so far, frames/s, and over the episodes that ended
     in the iteration: metres walked toward the terminus, seconds, the share that fell."""
     ep, metres = stats["episode_frames"], stats["episode_metres"]
+    none = np.isnan(ep)  # no episode ended in this iteration: nothing to say of them
     return {"frames": f"{frames / 1e6:.2f}M", "fps": f"{stats['frames_per_s']:.0f}",
-            "walked": "-" if np.isnan(metres) else f"{metres:.1f}m",
-            "ep": "-" if np.isnan(ep) else f"{ep * dt:.1f}s",
-            "falls": f"{100 * stats['fell_frac']:.0f}%", "reward": f"{stats['reward']:.3f}",
-            **extra}
+            "walked": "-" if none else f"{metres:.1f}m", "ep": "-" if none else f"{ep * dt:.1f}s",
+            "falls": "-" if none else f"{100 * stats['fell_frac']:.0f}%",
+            "reward": f"{stats['reward']:.3f}", **extra}
 
 
 def batch_scalars(batch, categories: list[str] | None = None) -> dict[str, float]:
