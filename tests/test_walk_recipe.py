@@ -103,6 +103,7 @@ def _batch(done: torch.Tensor, steps: torch.Tensor) -> TensorDict:
         keys.REACHED: torch.zeros(n, t, dtype=torch.bool), keys.FELL: done.clone(),
         keys.DIVERGED: torch.zeros(n, t, dtype=torch.bool),
         keys.PROGRESS: torch.zeros(n, t), keys.REWARD_TERMS: TensorDict({}, [n, t]),
+        keys.EPISODE_METRES: steps.float() * 0.01,  # 0.5 m/s at 50 Hz
     }, [n, t])
     return TensorDict({"next": nxt}, [n, t])
 
@@ -115,7 +116,9 @@ def test_episode_length_is_that_of_the_ended_episodes() -> None:
     done = torch.zeros(4, 24, dtype=torch.bool)
     done[0, 9], done[1, 19] = True, True
     steps = torch.arange(1, 25).expand(4, 24).clone()
-    assert batch_scalars(_batch(done, steps))["episode_frames"] == pytest.approx(15.0)
+    stats = batch_scalars(_batch(done, steps))
+    assert stats["episode_frames"] == pytest.approx(15.0)
+    assert stats["episode_metres"] == pytest.approx(0.15)  # of the ended episodes only
 
 
 def test_command_steers_toward_the_waypoint_and_can_be_zero() -> None:
@@ -158,9 +161,13 @@ def test_gait_clock_is_observed_and_legs_alternate() -> None:
 
 
 def test_reward_presets() -> None:
-    walk = make_env(cfg_of(), num_envs=2)
+    hike = make_env(cfg_of(), num_envs=2)  # the default: velocity toward the waypoint
+    assert "tracking_waypoint_vel" in hike.reward_terms
+    assert "tracking_lin_vel" not in hike.reward_terms and not hike.only_positive
+    hike.close()
+    walk = make_env(cfg_of("env.reward_preset=walk"), num_envs=2)
     assert "tracking_lin_vel" in walk.reward_terms and "tracking_goal_vel" not in walk.reward_terms
-    assert not walk.only_positive
+    assert "tracking_waypoint_vel" not in walk.reward_terms and not walk.only_positive
     walk.close()
     table6 = make_env(cfg_of("env.reward_preset=table6"), num_envs=2)
     assert table6.reward_terms["tracking_goal_vel"][1] == 10.0
