@@ -9,8 +9,8 @@ Per batch size N, in one run (these machines are noisy, so compare within a run)
   student loop:  ``train_student`` with ``algo=unified`` (LEGO-H: TC-ViTs + GRU + HLM, the
                  shipped oracle teaching), frames/s of its iterations after the first, and
                  the split of an iteration from train.csv's ``time/*`` columns: collection
-                 (env + depth + the student acting), the oracle's labels, the prior's steps,
-                 PPO, the imitation losses.
+                 (env + depth + the student acting), the oracle's labels with the prior's
+                 steps, PPO, the imitation losses.
 Writes experiments/results/bench_student.{md,json}. The target (issue 20): the student loop
 at >= 2,500 frames/s at N = 256 on 2 cores.
 """
@@ -42,7 +42,8 @@ from legoh.train.unified import train_student  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "experiments" / "results"
-PARTS = ("collect", "labels", "prior", "ppo", "distill")  # the student's time columns
+PARTS = ("collect", "prior", "ppo", "distill")  # the student's time columns (prior: the
+# oracle's labels and the prior's steps, timed together by StudentDistillation.update)
 TARGET = 2500.0
 
 
@@ -100,8 +101,8 @@ def main() -> None:
              "cost: the env step with depth frames over the one without, minus 1 (depth "
              "backend in the last column). Student split: shares of one iteration.", "",
              "| N | bare env | + depth | depth cost | oracle loop | student loop | student / "
-             "oracle | collect | labels | prior | PPO | imitation | depth backend |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "oracle | collect | labels + prior | PPO | imitation | depth backend |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     lines += [f"| {r['N']} | {r['bare']:.0f} | {r['bare_depth']:.0f} | {r['depth_cost']:.2f} | "
               f"{r['oracle_loop']:.0f} | {r['student_loop']:.0f} | "
               f"{r['student_over_oracle']:.2f} | "
