@@ -215,15 +215,12 @@ def film_demo(robot: str, trail: str, width: int = 360, every: int = 3) -> Path:
     from PIL import Image
 
     from legoh.config.compose import compose_config
-    from legoh.eval.benchmark import make_eval_env
+    from legoh.eval.cli import build_actor
     from legoh.play import render_policy_video
-    from legoh.policies.oracle import load_oracle_actor
 
     cfg = compose_config(f"robot={robot}", f"trail={trail}", "mode=play",
                          "checkpoint=pretrained")
-    env = make_eval_env(cfg)
-    actor = load_oracle_actor(cfg, "pretrained", env)
-    env.close()
+    actor, _ = build_actor(cfg, "pretrained")  # what mode=play loads
     out = RESULTS / "demo" / f"{robot}_{trail}.mp4"
     film = render_policy_video(cfg, actor, out)
     frames = iio.imread(film["video"])[::every]
