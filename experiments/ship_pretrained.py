@@ -1,13 +1,19 @@
-"""Ship a trained oracle as ``pretrained/<robot>_oracle.pt`` with its benchmark and card.
+"""Ship a trained policy as ``pretrained/<robot>_<stage>.pt`` with its benchmark and card.
 
     python experiments/ship_pretrained.py --robot h1 --run experiments/results/learn_hike/h1-s0
+    python experiments/ship_pretrained.py --robot h1 --stage unified \
+        --run experiments/results/learn_student/h1-unified-s0
 
-Copies the run's ``oracle.pt`` (refused above 10 MB), benchmarks it with the hiking protocol
-(the five categories of ``trail=hike``, levels 0-4, robots placed 2-10 m of path from the
-terminus, randomisation on, 30 s; ``--robots`` per level, ``--runs`` runs) and rewrites
-``pretrained/README.md`` from every shipped card (``pretrained/<robot>_oracle.json``):
-frames, training minutes, the commit that trained it, the recipe and the table.
-``checkpoint=pretrained`` and ``init=pretrained`` then pick the file.
+``--stage oracle`` (default) copies the run's ``oracle.pt`` (refused above 10 MB); a
+stage-2 variant (``unified``, ``ep_h``, ...) copies ``<stage>.pt`` without its optimiser and
+RNG states (a third of a student's file; nobody resumes a shipped student's Adam) and
+exports it as ``<robot>_<stage>.ts`` (TorchScript, ``mode=export``'s format). Then it
+benchmarks the file with the hiking protocol (the five categories of ``trail=hike``, levels
+0-4, robots placed 2-10 m of path from the terminus, randomisation on, 30 s; ``--robots`` per
+level, ``--runs`` runs) and rewrites ``pretrained/README.md`` from every shipped card
+(``pretrained/<robot>_<stage>.json``): frames, training minutes, the commit that trained it,
+the recipe and the table. ``checkpoint=pretrained`` (under the matching ``algo``) and
+``init=pretrained`` then pick the file.
 """
 
 from __future__ import annotations
@@ -16,7 +22,6 @@ import argparse
 import csv
 import json
 import os
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -29,24 +34,33 @@ import torch  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from learn_walk import compose_run  # noqa: E402
 
+from legoh.checkpoint import save_checkpoint  # noqa: E402
 from legoh.config.compose import compose_config  # noqa: E402
-from legoh.eval.benchmark import evaluate, make_eval_env  # noqa: E402
-from legoh.policies.oracle import load_oracle_actor  # noqa: E402
+from legoh.eval.benchmark import evaluate  # noqa: E402
+from legoh.eval.cli import build_actor  # noqa: E402
 from legoh.policies.pretrained import PRETRAINED_DIR, benchmark_protocol  # noqa: E402
 
 MAX_BYTES = 10 * 2**20
+RECIPES = {"oracle": "python experiments/learn_hike.py --robot {robot} (a campaign of runs; the "
+                     "run folder's summary.md and curve.png)",
+           "student": "python experiments/learn_student.py --robot {robot} --algo {stage} (a "
+                      "campaign of runs from the shipped oracle; the run folder's summary.md "
+                      "and curve.png)"}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robot", default="h1")
-    parser.add_argument("--run", help="a learn_hike run folder (required unless --main-job-only)")
+    parser.add_argument("--stage", default="oracle",
+                        help="oracle, or the stage-2 algo the run trained (unified, ep_h, ...)")
+    parser.add_argument("--run", help="a learn_hike / learn_student run folder (required "
+                                      "unless --main-job-only)")
     parser.add_argument("--robots", type=int, default=80, help="robots per level and run")
     parser.add_argument("--runs", type=int, default=2)
     parser.add_argument("--main-job-only", action="store_true",
-                        help="only (re)score the shipped file on the main job's protocol")
+                        help="only (re)score the shipped oracle on the main job's protocol")
     args = parser.parse_args()
-    card_path = PRETRAINED_DIR / f"{args.robot}_oracle.json"
+    card_path = PRETRAINED_DIR / f"{args.robot}_{args.stage}.json"
     if args.main_job_only:
         card = json.loads(card_path.read_text())
         card["main_job"] = main_job_reference(args.robot)
@@ -54,39 +68,56 @@ def main() -> None:
         print(json.dumps(card["main_job"]["rows"]["overall"]))
         return
     if not args.run:
-        parser.error("--run is required (a learn_hike run folder)")
+        parser.error("--run is required (a learn_hike or learn_student run folder)")
     run = Path(args.run)
-    src = run / "oracle.pt"
-    if src.stat().st_size > MAX_BYTES:
-        raise SystemExit(f"{src} is {src.stat().st_size / 2**20:.1f} MB, above 10 MB")
-    state = torch.load(src, map_location="cpu", weights_only=False)
-    dst = PRETRAINED_DIR / f"{args.robot}_oracle.pt"
-    PRETRAINED_DIR.mkdir(exist_ok=True)
-    shutil.copyfile(src, dst)
+    dst = ship_file(run / f"{args.stage}.pt", args.robot, args.stage)
+    state = torch.load(dst, map_location="cpu", weights_only=True)
     cfg = compose_run(args.robot, 0, "walk", "hike", [
-        f"eval.robots={args.robots}", f"eval.runs={args.runs}", "eval.variants=2",
-        "eval.levels=[0,1,2,3,4]", "eval.randomization=true", "eval.seed=2000"])
-    env = make_eval_env(cfg)
-    actor = load_oracle_actor(cfg, "pretrained", env)
-    env.close()
-    result = evaluate(cfg, actor, PRETRAINED_DIR / f"{args.robot}_oracle_eval",
-                      label=f"{args.robot}_oracle")
+        f"algo={args.stage}", f"eval.robots={args.robots}", f"eval.runs={args.runs}",
+        "eval.variants=2", "eval.levels=[0,1,2,3,4]", "eval.randomization=true",
+        "eval.seed=2000"])
+    policy, env_fn = build_actor(cfg, "pretrained")
+    if args.stage != "oracle":
+        from legoh.export import export_student
+        export_student(policy, dst.with_suffix(".ts"), meta={"robot": args.robot,
+                                                            "algo": args.stage})
+        policy = policy.policy
+    result = evaluate(cfg, policy, PRETRAINED_DIR / f"{args.robot}_{args.stage}_eval",
+                      label=f"{args.robot}_{args.stage}", env_fn=env_fn)
     clock = run / "clock.csv"
     minutes = float(clock.read_text().strip().splitlines()[-1].split(",")[1]) if (
         clock.exists()) else None
     frames = int(state["iteration"]) * int(state["config"]["algo"]["num_envs"]) * int(
         state["config"]["algo"]["steps_per_env"])
-    card = {"robot": args.robot, "file": dst.name, "iteration": int(state["iteration"]),
-            "frames": frames, "minutes": minutes, "run": str(run),
-            "commit": trained_by(run),
-            "recipe": f"python experiments/learn_hike.py --robot {args.robot} (a campaign of "
-                      "runs; the run folder's summary.md and curve.png)",
+    recipe = RECIPES["oracle" if args.stage == "oracle" else "student"]
+    card = {"robot": args.robot, "stage": args.stage, "file": dst.name,
+            "iteration": int(state["iteration"]), "frames": frames, "minutes": minutes,
+            "run": str(run), "commit": trained_by(run),
+            "recipe": recipe.format(robot=args.robot, stage=args.stage),
             "megabytes": round(dst.stat().st_size / 2**20, 2),
-            "benchmark": Path(result["paths"]["markdown"]).read_text(),
-            "main_job": main_job_reference(args.robot)}
+            "benchmark": Path(result["paths"]["markdown"]).read_text()}
+    if args.stage == "oracle":
+        card["main_job"] = main_job_reference(args.robot)
     card_path.write_text(json.dumps(card, indent=2))
     write_readme()
     print((PRETRAINED_DIR / "README.md").read_text())
+
+
+def ship_file(src: Path, robot: str, stage: str) -> Path:
+    """Copy ``src`` to ``pretrained/<robot>_<stage>.pt``: whole for an oracle, without
+    optimiser and RNG states for a student; refused above :data:`MAX_BYTES`."""
+    state = torch.load(src, map_location="cpu", weights_only=False)
+    if state["robot"] != robot:
+        raise SystemExit(f"{src} was trained on robot {state['robot']!r}, not {robot!r}")
+    if stage != "oracle":
+        state = {k: v for k, v in state.items() if k not in ("optimizers", "rng")}
+    PRETRAINED_DIR.mkdir(exist_ok=True)
+    dst = save_checkpoint(PRETRAINED_DIR / f"{robot}_{stage}.pt", state)
+    size = dst.stat().st_size
+    if size > MAX_BYTES:
+        dst.unlink()
+        raise SystemExit(f"{src} ships as {size / 2**20:.1f} MB, above 10 MB")
+    return dst
 
 
 def main_job_reference(robot: str) -> dict:
@@ -94,9 +125,7 @@ def main_job_reference(robot: str) -> dict:
     robot=<robot>``: its trail, eval protocol and seed), which the main job prints beside
     its own table (``legoh.app.print_beside_shipped``)."""
     cfg = compose_config(f"robot={robot}")
-    env = make_eval_env(cfg)
-    actor = load_oracle_actor(cfg, "pretrained", env)
-    env.close()
+    actor = build_actor(cfg, "pretrained")[0]
     with tempfile.TemporaryDirectory() as tmp:
         result = evaluate(cfg, actor, tmp, label=f"{robot}_oracle")
     rows = {**result["rows"], **result["levels"]}
@@ -120,18 +149,25 @@ def trained_by(run: Path) -> str:
 def write_readme() -> None:
     lines = ["# Pretrained policies", "",
              "Written by `experiments/ship_pretrained.py` from each card "
-             "(`<robot>_oracle.json`). `checkpoint=pretrained` (eval, play) and "
-             "`init=pretrained` (train) pick the robot's file:", "", "```bash",
+             "(`<robot>_<stage>.json`). `checkpoint=pretrained` (eval, play; under "
+             "`algo=unified` the student) and `init=pretrained` (train) pick the robot's "
+             "file:", "", "```bash",
              "python run.py mode=play checkpoint=pretrained trail=hurdle",
              "python run.py mode=eval checkpoint=pretrained trail=randommix",
+             "python run.py mode=play checkpoint=pretrained algo=unified trail=forest",
              "python run.py init=pretrained            # train on from the shipped oracle",
-             "```", ""]
-    for path in sorted(PRETRAINED_DIR.glob("*_oracle.json")):
+             "```", "",
+             "A student also ships as TorchScript (`<robot>_<stage>.ts`, `mode=export`'s "
+             "format: `torch.jit.load` is all it needs; inputs in `legoh/export.py`).", ""]
+    for path in sorted(PRETRAINED_DIR.glob("*_*.json")):
         c = json.loads(path.read_text())
+        stage = c.get("stage", "oracle")
         minutes = "n/a" if c["minutes"] is None else f"{c['minutes']:.0f}"
-        lines += [f"## `{c['file']}` ({c['robot'].upper()} oracle, {c['megabytes']} MB)", "",
+        origin = ("from the learn_walk walker" if stage == "oracle"
+                  else f"distilled from `{c['robot']}_oracle.pt`")
+        lines += [f"## `{c['file']}` ({c['robot'].upper()} {stage}, {c['megabytes']} MB)", "",
                   f"- {c['frames']:,} frames ({c['iteration']} iterations), {minutes} minutes "
-                  f"of training on a 2-core CPU, from the learn_walk walker",
+                  f"of training on a 2-core CPU, {origin}",
                   f"- trained by commit `{c['commit']}` (its last session): {c['recipe']}; "
                   f"run folder `{c['run']}`", "", c["benchmark"], ""]
     (PRETRAINED_DIR / "README.md").write_text("\n".join(lines))

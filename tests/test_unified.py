@@ -254,3 +254,31 @@ def test_same_seed_same_training(artefacts, tmp_path):
                                                                              "frames_per_s"))}
                          for row in csv.DictReader(f)])
     assert logs[0] == logs[1]
+
+
+def test_a_shipped_student_is_slim_and_checkpoint_pretrained_picks_it(artefacts, tmp_path,
+                                                                    monkeypatch):
+    """ship_pretrained writes pretrained/<robot>_unified.pt without optimiser and RNG states,
+    and ``checkpoint=pretrained`` under algo=unified loads that file (its weights), while the
+    oracle stage still means <robot>_oracle.pt."""
+    import sys
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments"))
+    import ship_pretrained
+
+    run = train_student(tiny("unified", artefacts), tmp_path / "run")
+    shipped = tmp_path / "pretrained"
+    monkeypatch.setattr("legoh.policies.pretrained.PRETRAINED_DIR", shipped)
+    monkeypatch.setattr(ship_pretrained, "PRETRAINED_DIR", shipped)
+    dst = ship_pretrained.ship_file(run.checkpoint, "h1", "unified")
+    assert dst == shipped / "h1_unified.pt"
+    assert dst.stat().st_size < 0.75 * run.checkpoint.stat().st_size
+    state = load_checkpoint(dst)
+    assert "optimizers" not in state and "rng" not in state
+    policy, _ = build_actor(tiny("unified", artefacts), "pretrained")
+    for a, b in zip(policy.navigation.state_dict().values(),
+                    run.algorithm.student.navigation.state_dict().values(), strict=True):
+        assert torch.equal(a, b)
+    with pytest.raises(FileNotFoundError, match="no pretrained oracle"):
+        build_actor(compose_config("trail=flat", "eval.robots=1"), "pretrained")
+    with pytest.raises(SystemExit, match="robot 'h1', not 'g1'"):
+        ship_pretrained.ship_file(run.checkpoint, "g1", "unified")

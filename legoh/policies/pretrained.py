@@ -26,6 +26,12 @@ def resolve_checkpoint(value: str, robot: str, stage: str = "oracle") -> Path:
     return pretrained_path(robot, stage) if value == "pretrained" else Path(value)
 
 
+def shipped_stage(cfg: DictConfig) -> str:
+    """Which shipped file ``checkpoint=pretrained`` means under ``cfg.algo``: ``oracle`` for
+    stage 1, else the variant's name (``unified``, ``ep_h``, ...): ``<robot>_<name>.pt``."""
+    return "oracle" if str(cfg.algo.stage) == "oracle" else str(cfg.algo.name)
+
+
 def shipped_oracle(robot: str) -> Path | None:
     """``pretrained/<robot>_oracle.pt`` when the repository ships one, else None."""
     try:
