@@ -12,7 +12,13 @@ import pytest
 import torch
 
 from legoh.config.env import EnvConfig, table6_weights, walk_weights
-from legoh.envs.mdp.rewards import REWARD_TERMS, active_terms, compute_rewards, term_params
+from legoh.envs.mdp.rewards import (
+    REWARD_TERMS,
+    active_terms,
+    compute_rewards,
+    preset_weights,
+    term_params,
+)
 from legoh.envs.mdp.state import StepState
 
 N, J, F = 2, 4, 2  # envs, joints, feet
@@ -227,3 +233,16 @@ def test_compute_rewards_with_no_terms_is_zero() -> None:
     total, parts = compute_rewards(neutral(), {})
     assert parts == {}
     np.testing.assert_array_equal(total.numpy(), np.zeros(N))
+
+
+def test_robot_reward_scales_multiply_the_preset_and_the_user_has_the_last_word() -> None:
+    base = preset_weights("hike", {}, {})
+    scaled = preset_weights("hike", {}, {}, {"tracking_waypoint_vel": 2.0, "alive": 0.5})
+    assert scaled["tracking_waypoint_vel"] == 2.0 * base["tracking_waypoint_vel"]
+    assert scaled["alive"] == 0.5 * base["alive"]
+    assert scaled["tracking_lin_vel"] == base["tracking_lin_vel"] == 0.0  # 0 stays off
+    user = preset_weights("hike", {"tracking_waypoint_vel": 1.5}, {},
+                          {"tracking_waypoint_vel": 2.0})
+    assert user["tracking_waypoint_vel"] == 1.5
+    with pytest.raises(ValueError, match="robot.reward_scales.nonsense"):
+        preset_weights("hike", {}, {}, {"nonsense": 2.0})

@@ -63,7 +63,8 @@ RANGES: list[tuple[str, Range]] = [
     # robot: gains and limits from the MJCF side; the pose and Table 6 weights are signed
     ("robot.kp.*", NON_NEGATIVE), ("robot.kd.*", NON_NEGATIVE),
     ("robot.torque_limit.*", POSITIVE), ("robot.default_pose.*", ANY),
-    ("robot.table6_weights.*", ANY), ("robot.camera.pos", ANY),
+    ("robot.table6_weights.*", ANY), ("robot.reward_scales.*", NON_NEGATIVE),
+    ("robot.camera.pos", ANY),
     ("robot.camera.pitch_deg", Range(-90, 90)), ("robot.camera.fovy_deg", Range(0, 180, True)),
     ("robot.action_scale", POSITIVE), ("robot.effort_action_scale", POSITIVE),
     ("robot.nominal_base_height", POSITIVE),

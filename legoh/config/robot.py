@@ -53,4 +53,7 @@ class RobotConfig:
     knee_bodies: list[str] = field(default_factory=list)  # shins/knees: collision-term bodies
     hip_joints: list[str] = field(default_factory=list)  # hip yaw/roll: Table 6 "hip position"
     table6_weights: dict[str, float] = field(default_factory=dict)  # this robot's Table 6 column
+    # multipliers of the reward preset's weights for this robot (env.rewards still overrides);
+    # G1: the velocity kernels x 2 (docs/oracle.md, "G1")
+    reward_scales: dict[str, float] = field(default_factory=dict)
     render_meshes: bool = False  # keep visual meshes (rendering); training strips them

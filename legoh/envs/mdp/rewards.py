@@ -245,9 +245,11 @@ def termination(s: StepState) -> torch.Tensor:
 
 
 def preset_weights(preset: str, overrides: dict[str, float | None],
-                   robot_table6: dict[str, float]) -> dict[str, float]:
+                   robot_table6: dict[str, float],
+                   robot_scales: dict[str, float] | None = None) -> dict[str, float]:
     """Weights of a reward preset (``legoh.config.env.REWARD_PRESETS``), the robot's Table 6
-    column for ``table6``, then ``overrides`` (``env.rewards``)."""
+    column for ``table6``, times the robot's ``reward_scales``, then ``overrides``
+    (``env.rewards``: absolute weights, the user's last word)."""
     from legoh.config.env import REWARD_PRESETS
 
     if preset not in REWARD_PRESETS:
@@ -255,6 +257,11 @@ def preset_weights(preset: str, overrides: dict[str, float | None],
     weights = REWARD_PRESETS[preset][0]()
     if preset == "table6":
         weights.update(robot_table6)
+    for name, scale in (robot_scales or {}).items():
+        if name not in weights:
+            raise ValueError(f"robot.reward_scales.{name}: unknown reward term; known: "
+                             f"{sorted(weights)}")
+        weights[name] *= scale
     weights.update({k: v for k, v in overrides.items() if v is not None})
     return weights
 
@@ -304,7 +311,7 @@ def reward_table(cfg, robot_cfg, target_height: float, reach_radius: float
     from legoh.config.env import REWARD_PRESETS
 
     weights = preset_weights(cfg.reward_preset, dict(cfg.rewards),
-                             dict(robot_cfg.table6_weights))
+                             dict(robot_cfg.table6_weights), dict(robot_cfg.reward_scales))
     table = active_terms(weights, term_params(cfg, target_height, reach_radius))
     _, clip_total = REWARD_PRESETS[cfg.reward_preset]
     clip = clip_total if cfg.only_positive_rewards is None else bool(cfg.only_positive_rewards)
