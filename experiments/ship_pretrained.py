@@ -57,6 +57,11 @@ def main() -> None:
                                       "unless --main-job-only)")
     parser.add_argument("--robots", type=int, default=80, help="robots per level and run")
     parser.add_argument("--runs", type=int, default=2)
+    parser.add_argument("--recipe", help="how it was trained, when not the campaign script's "
+                                         "default (e.g. a chain of warm-started runs)")
+    parser.add_argument("--minutes", type=float,
+                        help="training minutes, when the run folder has no clock.csv")
+    parser.add_argument("--origin", help="what it started from (README line)")
     parser.add_argument("--main-job-only", action="store_true",
                         help="only (re)score the shipped oracle on the main job's protocol")
     args = parser.parse_args()
@@ -86,14 +91,16 @@ def main() -> None:
                       label=f"{args.robot}_{args.stage}", env_fn=env_fn)
     clock = run / "clock.csv"
     minutes = float(clock.read_text().strip().splitlines()[-1].split(",")[1]) if (
-        clock.exists()) else None
+        clock.exists()) else args.minutes
     frames = int(state["iteration"]) * int(state["config"]["algo"]["num_envs"]) * int(
         state["config"]["algo"]["steps_per_env"])
     recipe = RECIPES["oracle" if args.stage == "oracle" else "student"]
     card = {"robot": args.robot, "stage": args.stage, "file": dst.name,
             "iteration": int(state["iteration"]), "frames": frames, "minutes": minutes,
             "run": str(run), "commit": trained_by(run),
-            "recipe": recipe.format(robot=args.robot, stage=args.stage),
+            "recipe": args.recipe or recipe.format(robot=args.robot, stage=args.stage),
+            "origin": args.origin or ("from the learn_walk walker" if args.stage == "oracle"
+                                      else f"distilled from `{args.robot}_oracle.pt`"),
             "megabytes": round(dst.stat().st_size / 2**20, 2),
             "benchmark": Path(result["paths"]["markdown"]).read_text()}
     if args.stage == "oracle":
@@ -163,8 +170,7 @@ def write_readme() -> None:
         c = json.loads(path.read_text())
         stage = c.get("stage", "oracle")
         minutes = "n/a" if c["minutes"] is None else f"{c['minutes']:.0f}"
-        origin = ("from the learn_walk walker" if stage == "oracle"
-                  else f"distilled from `{c['robot']}_oracle.pt`")
+        origin = c.get("origin", "from the learn_walk walker")
         lines += [f"## `{c['file']}` ({c['robot'].upper()} {stage}, {c['megabytes']} MB)", "",
                   f"- {c['frames']:,} frames ({c['iteration']} iterations), {minutes} minutes "
                   f"of training on a 2-core CPU, {origin}",

@@ -84,13 +84,13 @@ def train_and_evaluate(cfg: DictConfig, out_dir: Path) -> None:
 
 
 def print_beside_shipped(cfg: DictConfig, result: dict) -> None:
-    """This run's overall and per-level rows beside the shipped policy's on the same
-    protocol (its card records them), when it has them."""
+    """This run's overall and per-level rows beside the shipped oracle's on the same
+    protocol (its card records them), when it has them: for an oracle the file it started
+    from, for a student its default teacher."""
     from legoh.eval.metrics import to_markdown
     from legoh.policies.pretrained import shipped_reference
 
-    stage = "oracle" if cfg.algo.stage == Stage.oracle else "unified"
-    ref = shipped_reference(cfg, stage)
+    ref = shipped_reference(cfg, "oracle")
     if ref is None:
         return
     mine = {**result["rows"], **result["levels"]}
@@ -98,9 +98,10 @@ def print_beside_shipped(cfg: DictConfig, result: dict) -> None:
     for name in ref:
         if name in mine:
             rows[f"{name}: this run"] = mine[name]
-            rows[f"{name}: shipped {cfg.robot.name}_{stage}.pt"] = {
+            rows[f"{name}: shipped {cfg.robot.name}_oracle.pt"] = {
                 k: tuple(v) for k, v in ref[name].items()}
-    print(to_markdown(rows, "Row", f"This run beside the shipped {cfg.robot.name} {stage} "
+    role = "oracle" if cfg.algo.stage == Stage.oracle else "oracle (the teacher by default)"
+    print(to_markdown(rows, "Row", f"This run beside the shipped {cfg.robot.name} {role} "
                                    "(pretrained/, the same protocol and seed)"))
 
 

@@ -76,6 +76,10 @@ def test_the_benchmark_is_printed_beside_the_shipped_one_on_the_same_protocol(
     other = compose_config(*TINY, "eval.robots=3")  # another protocol: nothing to set beside
     app.print_beside_shipped(other, result)
     assert capsys.readouterr().out == ""
+    # a student (python run.py algo=unified) is set beside its default teacher
+    app.print_beside_shipped(compose_config(*TINY, "algo=unified"), result)
+    out = capsys.readouterr().out
+    assert "oracle (the teacher by default)" in out and "overall: shipped h1_oracle.pt" in out
 
 
 def test_progress_bar_shows_frames_metres_and_falls_of_the_ended_episodes() -> None:
