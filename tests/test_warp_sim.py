@@ -187,15 +187,16 @@ def test_reset_sensors_match_mj_forward(sim: WarpSim, scene: Scene) -> None:
 
 
 def test_g1_loads_and_matches_before_touchdown(device: str) -> None:
-    """G1 on the same ground: the sensors of its reset state, then 0.1 s of falling (its
-    touchdown is equivalent but not bitwise: MuJoCo Warp's contacts differ, see above)."""
+    """G1 on the same ground: the sensors of its reset state, then 0.06 s of falling, before
+    its feet touch down (a 2 cm drop takes 0.064 s; after it the two engines' contacts are
+    equivalent but not bitwise, see above, and the compliant kp 200 legs spread that)."""
     g1 = scene_of("g1")
     sim = WarpSim(g1.model, g1.robot.base_body, nominal(), N, SUBSTEPS, device=device)
     qpos, ctrl = reset_all(sim, g1)
     assert_sensors_close(g1, sim.sensordata[:, 0].cpu().numpy(),
                          cpu_forward(g1.model, qpos, ctrl)[1])
-    state, _ = cpu_rollout([g1.model] * N, qpos, ctrl, 5 * SUBSTEPS)
-    got_qpos, _ = warp_run(sim, 5, ctrl)
+    state, _ = cpu_rollout([g1.model] * N, qpos, ctrl, 3 * SUBSTEPS)
+    got_qpos, _ = warp_run(sim, 3, ctrl)
     np.testing.assert_allclose(got_qpos[:, -1, :3], state[:, -1, 1:4], atol=1e-4)
     sim.close()
 
