@@ -7,7 +7,7 @@ campaign of runs that each resume from the last one's committed checkpoint.
 
 Training (``trail=hike``: RandomMix, Ditch, Hurdle, Gap and Forest in one map, each robot
 its own category and level under the curriculum; randomisation brought in by the gate) starts
-from ``--init`` (default: the committed lean-loop H1 walker; ``none``: from scratch) and, when
+from ``--init`` (default: the committed walker of the robot; ``none``: from scratch) and, when
 the run folder already holds ``oracle.pt``, resumes from it instead: a campaign is this command
 run again on a fresh clone after the previous run's files were committed. Every
 ``--eval-every`` minutes of training it saves the actor to ``snapshots/`` (git-ignored) and
@@ -58,7 +58,9 @@ from legoh.train.oracle import train_oracle  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "experiments" / "results" / "learn_hike"
-WALKER = {"h1": ROOT / "experiments/results/learn_walk/h1-walk-s0-fast-c256-e3/oracle.pt"}
+WALKER = {"h1": ROOT / "experiments/results/learn_walk/h1-walk-s0-fast-c256-e3/oracle.pt",
+          # (b) at 140 chained minutes (docs/oracle.md, "G1"); it learned with the hike preset
+          "g1": ROOT / "experiments/results/learn_walk/g1-hike-s0-bent-kp200-wp2/oracle.pt"}
 # the lean loop of learn_walk (bfloat16 update, overlapped collection, 256-128-64 critic,
 # 3 epochs): the walker it starts from was trained with it
 LEAN = ["algo.update_precision=bfloat16", "collector.overlap=true",
