@@ -1,6 +1,7 @@
 """The stage-2 student loop beside the oracle loop: frames/s and where the student's time goes.
 
-    python experiments/bench_student.py [--sizes 64 256] [--iterations 4] [--note "..."]
+    python experiments/bench_student.py [--sizes 64 256] [--iterations 4]
+        [--variants "" "algo.update_precision=bfloat16 collector.overlap=true"] [--note "..."]
 
 Per batch size N, in one run (these machines are noisy, so compare within a run):
   bare env:      HikingEnv.step_and_maybe_reset with random actions, depth off (the physics
@@ -10,7 +11,8 @@ Per batch size N, in one run (these machines are noisy, so compare within a run)
                  shipped oracle teaching), frames/s of its iterations after the first, and
                  the split of an iteration from train.csv's ``time/*`` columns: collection
                  (env + depth + the student acting), the oracle's labels with the prior's
-                 steps, PPO, the imitation losses.
+                 steps, PPO, the imitation losses; one row per ``--variants`` entry (Hydra
+                 overrides of the student loop, "" the defaults).
 Writes experiments/results/bench_student.{md,json}. The target (issue 20): the student loop
 at >= 2,500 frames/s at N = 256 on 2 cores.
 """
@@ -65,6 +67,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[64, 256])
     parser.add_argument("--iterations", type=int, default=4)
+    parser.add_argument("--variants", nargs="+", default=[""],
+                        help="student loops to time, each a space-separated list of Hydra "
+                             "overrides ('' = the defaults)")
     parser.add_argument("--note", default="", help="a line on the conditions of this run")
     args = parser.parse_args()
     torch.set_num_threads(1)
@@ -83,15 +88,20 @@ def main() -> None:
         bare_depth = bare_rate(env, max(50, 6000 // n))
         env.close()
         oracle = loop(train_oracle, base, args.iterations)
-        student = loop(train_student, student_cfg, args.iterations)
-        total = sum(student.get(f"s_{p}", 0.0) for p in PARTS)
-        row = {"N": n, "bare": bare, "bare_depth": bare_depth, "depth_cost": bare / bare_depth - 1,
-               "oracle_loop": oracle["fps"], "student_loop": student["fps"],
-               "student_over_oracle": student["fps"] / oracle["fps"],
-               **{f"share_{p}": student.get(f"s_{p}", 0.0) / total for p in PARTS},
-               "depth_backend": str(depth.backend.value), "wall_s": time.perf_counter() - t0}
-        rows.append(row)
-        print(json.dumps(row), flush=True)
+        for variant in args.variants:
+            cfg = compose_config("algo=unified", f"algo.num_envs={n}",
+                                 "algo.prior_pretrain_frames=0", *variant.split())
+            student = loop(train_student, cfg, args.iterations)
+            total = sum(student.get(f"s_{p}", 0.0) for p in PARTS)
+            row = {"N": n, "variant": variant or "defaults", "bare": bare, "bare_depth": bare_depth,
+                   "depth_cost": bare / bare_depth - 1, "oracle_loop": oracle["fps"],
+                   "student_loop": student["fps"],
+                   "student_over_oracle": student["fps"] / oracle["fps"],
+                   **{f"share_{p}": student.get(f"s_{p}", 0.0) / total for p in PARTS},
+                   "depth_backend": str(depth.backend.value),
+                   "wall_s": time.perf_counter() - t0}
+            rows.append(row)
+            print(json.dumps(row), flush=True)
     (OUT / "bench_student.json").write_text(json.dumps(
         {"sizes": rows, "target_fps_at_256": TARGET, "torch_threads": 1, "cpus": os.cpu_count(),
          "note": args.note}, indent=2))
@@ -100,10 +110,12 @@ def main() -> None:
              f"Target (issue 20): the student loop >= {TARGET:.0f} frames/s at N = 256. Depth "
              "cost: the env step with depth frames over the one without, minus 1 (depth "
              "backend in the last column). Student split: shares of one iteration.", "",
-             "| N | bare env | + depth | depth cost | oracle loop | student loop | student / "
-             "oracle | collect | labels + prior | PPO | imitation | depth backend |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
-    lines += [f"| {r['N']} | {r['bare']:.0f} | {r['bare_depth']:.0f} | {r['depth_cost']:.2f} | "
+             "| N | student loop overrides | bare env | + depth | depth cost | oracle loop | "
+             "student loop | student / oracle | collect | labels + prior | PPO | imitation | depth "
+             "backend |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    lines += [f"| {r['N']} | {r['variant']} | {r['bare']:.0f} | {r['bare_depth']:.0f} | "
+              f"{r['depth_cost']:.2f} | "
               f"{r['oracle_loop']:.0f} | {r['student_loop']:.0f} | "
               f"{r['student_over_oracle']:.2f} | "
               + " | ".join(f"{100 * r[f'share_{p}']:.0f} %" for p in PARTS)

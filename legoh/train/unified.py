@@ -10,6 +10,7 @@ the imitation losses (action, latent, goals, HLM) update the whole student throu
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import time
 from pathlib import Path
@@ -17,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import torch
 from omegaconf import DictConfig
+from torch.nn.attention import SDPBackend, sdpa_kernel
 
 from legoh import keys
 from legoh.config.env import DepthConfig
@@ -24,7 +26,7 @@ from legoh.envs.hiking_env import make_env
 from legoh.modules.actor_critic import LOC
 from legoh.modules.students import Student, unroll
 from legoh.objectives.distill import distillation_loss
-from legoh.objectives.ppo import make_ppo, ppo_update
+from legoh.objectives.ppo import make_ppo, ppo_update, use_bfloat16
 from legoh.policies.oracle import load_teacher
 from legoh.policies.student import (
     build_student,
@@ -155,26 +157,46 @@ def label_with_oracle(oracle, batch) -> None:
 def distill(student: Student, batch, cfg: DictConfig, optim, prior_loss,
             gen: torch.Generator) -> dict:
     """``algo.distill_epochs`` passes over the batch in ``algo.minibatches`` groups of envs
-    (whole sequences: the recurrent core runs through time); logged values are means."""
+    (whole sequences: the recurrent core runs through time); logged values are means.
+    ``algo.update_precision`` applies as in PPO (:func:`precision_context`)."""
     algo = cfg.algo
     n = batch.shape[0]
     groups = max(1, min(algo.minibatches, n))
     sums: dict[str, float] = {}
+    context = functools.partial(precision_context, algo.update_precision, batch.device.type)
     for _ in range(algo.distill_epochs):
         for rows in torch.randperm(n, generator=gen).chunk(groups):
-            out = distill_step(student, batch[rows.to(batch.device)], cfg, optim, prior_loss)
+            out = distill_step(student, batch[rows.to(batch.device)], cfg, optim, prior_loss,
+                               context)
             for key, value in out.items():
                 sums[key] = sums.get(key, 0.0) + value / (algo.distill_epochs * groups)
     return sums
 
 
-def distill_step(student: Student, batch, cfg: DictConfig, optim, prior_loss) -> dict:
+def precision_context(precision, device_type: str) -> contextlib.AbstractContextManager:
+    """The forward passes' precision (``algo.update_precision``, resolved as PPO resolves it):
+    bfloat16 autocast, and on a CPU attention by the math kernel (its bfloat16 fused kernel
+    ran slower than float32 on these tiny sequences: 4 frames, 12 patches), else nothing."""
+    if not use_bfloat16(str(getattr(precision, "value", precision)), device_type):
+        return contextlib.nullcontext()
+    stack = contextlib.ExitStack()
+    stack.enter_context(torch.autocast(device_type, dtype=torch.bfloat16))
+    if device_type == "cpu":
+        stack.enter_context(sdpa_kernel(SDPBackend.MATH))
+    return stack
+
+
+def distill_step(student: Student, batch, cfg: DictConfig, optim, prior_loss,
+                 context=contextlib.nullcontext) -> dict:
     """One gradient step of the imitation losses over a (n, T) batch, the navigation
-    module re-run through time (truncated BPTT over the batch's T steps)."""
-    nav_out = unroll(student.navigation, batch)
-    head_in = nav_out.clone(recurse=False)
-    head_in.set(keys.PROPRIO, batch.get(keys.PROPRIO))
-    loc = student.locomotion.module[0](head_in).get(LOC)  # the Gaussian head's mean
+    module re-run through time (truncated BPTT over the batch's T steps) inside
+    ``context()`` (the forward precision); the losses are taken in float32."""
+    with context():
+        nav_out = unroll(student.navigation, batch)
+        head_in = nav_out.clone(recurse=False)
+        head_in.set(keys.PROPRIO, batch.get(keys.PROPRIO))
+        loc = student.locomotion.module[0](head_in).get(LOC)  # the Gaussian head's mean
+    nav_out, loc = nav_out.float(), loc.float()
     out = distillation_loss(nav_out, loc, batch, cfg.algo.weights, prior_loss)
     total = sum(v for k, v in out.items() if k.startswith("loss_"))
     optim.zero_grad()
