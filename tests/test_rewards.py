@@ -246,3 +246,22 @@ def test_robot_reward_scales_multiply_the_preset_and_the_user_has_the_last_word(
     assert user["tracking_waypoint_vel"] == 1.5
     with pytest.raises(ValueError, match="robot.reward_scales.nonsense"):
         preset_weights("hike", {}, {}, {"nonsense": 2.0})
+
+
+def test_the_documented_overrides_of_a_robots_reward_scales_compose() -> None:
+    """docs/robots.md's commands: each scale set back to 1 restores the preset's weights, and
+    ``+robot.reward_scales.<term>=x`` adds one. (``robot.reward_scales={}``, the docs' earlier
+    advice, merges into the dict and removed nothing.)"""
+    from legoh.config.compose import compose_config
+
+    g1 = compose_config("robot=g1")
+    assert dict(g1.robot.reward_scales) == {"tracking_lin_vel": 2.0,
+                                            "tracking_waypoint_vel": 2.0}
+    assert dict(compose_config("robot=g1", "robot.reward_scales={}").robot.reward_scales) == \
+        dict(g1.robot.reward_scales)
+    unit = compose_config("robot=g1", "robot.reward_scales.tracking_lin_vel=1",
+                          "robot.reward_scales.tracking_waypoint_vel=1").robot.reward_scales
+    assert preset_weights("hike", {}, {}, dict(unit)) == preset_weights("hike", {}, {})
+    more = compose_config("robot=g1", "+robot.reward_scales.alive=10").robot.reward_scales
+    assert preset_weights("hike", {}, {}, dict(more))["alive"] == \
+        10 * preset_weights("hike", {}, {})["alive"]
