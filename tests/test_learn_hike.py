@@ -59,3 +59,22 @@ def test_a_campaign_resumes_from_its_committed_files(tmp_path) -> None:
     assert [int(r["iteration"]) for r in sessions] == [0, it0]
     assert str(ROOT) not in (clone / "sessions.csv").read_text()  # clones differ in path
     assert recipe_changes(clone) == [(float(sessions[1]["frames"]), "env.curriculum.up=0.7")]
+
+
+def test_the_training_config_keeps_the_robots_reward_scales() -> None:
+    """learn_hike trains with the hike preset and leaves a robot's reward_scales alone.
+    Failed before with: the waypoint kernel at 1.0 for G1 (learn_hike gave the kernels as
+    absolute env.rewards weights, over G1's x 2), half what its walker learned with."""
+    sys.path.insert(0, str(ROOT / "experiments"))
+    from learn_hike import make_parser, train_config
+
+    from legoh.envs.mdp.rewards import preset_weights
+
+    def weights(robot):
+        _, cfg = train_config(make_parser().parse_args(["--robot", robot, "--init", "none"]))
+        return preset_weights(cfg.env.reward_preset, dict(cfg.env.rewards),
+                              dict(cfg.robot.table6_weights), dict(cfg.robot.reward_scales))
+
+    g1, h1 = weights("g1"), weights("h1")
+    assert g1["tracking_waypoint_vel"] == 2.0 and g1["tracking_lin_vel"] == 0.0
+    assert h1["tracking_waypoint_vel"] == 1.0 and h1["tracking_lin_vel"] == 0.0
