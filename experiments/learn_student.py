@@ -128,7 +128,10 @@ def shown(path: Path) -> str:
 def student_config(args, teacher: Path, trail: str, more: list[str]):
     """The stage-2 config of this campaign (``more`` after its recipe, before the user's
     overrides)."""
-    return compose_run(args.robot, args.seed, "walk", trail,
+    # the hike preset, the oracle's own: the velocity kernel toward the next waypoint, times
+    # the robot's reward_scales (until session 4 learn_hike's HIKE set it as an absolute
+    # weight over the walk preset: the same weights for H1, half the kernel for G1)
+    return compose_run(args.robot, args.seed, "hike", trail,
                        [f"algo={args.algo}", f"algo.oracle_checkpoint={teacher}", *more,
                         *args.overrides])
 
@@ -361,7 +364,7 @@ def plot(out: Path) -> None:
     finish_figure(fig, axes, titles, out / "curve.png")
 
 
-def main() -> None:
+def make_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_campaign_arguments(parser, envs=32, scored="s2, s3")
     parser.add_argument("--algo", default="unified",
@@ -369,7 +372,11 @@ def main() -> None:
     parser.add_argument("--teacher", default="pretrained",
                         help="pretrained (else the learn_hike oracle) | PATH")
     parser.add_argument("--trail", default="hike", help="training trail")
-    args = parser.parse_intermixed_args()  # overrides may come between options
+    return parser
+
+
+def main() -> None:
+    args = make_parser().parse_intermixed_args()  # overrides may come between options
     if args.plot:
         return write_summary(run_dir(args), args)
     if args.evaluate:

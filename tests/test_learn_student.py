@@ -93,3 +93,21 @@ def test_the_teacher_is_the_shipped_oracle_else_the_hiking_one(tmp_path, monkeyp
     assert learn_student.resolve_teacher("h1", "some/path.pt") == Path("some/path.pt")
     with pytest.raises(SystemExit, match="--teacher PATH"):
         learn_student.resolve_teacher("g1", "pretrained")
+
+
+def test_the_students_reward_is_its_oracles() -> None:
+    """Stage 2 trains on the hike preset with the robot's reward_scales, as learn_hike
+    trains the oracle: the waypoint kernel 1.0 for H1 (as before) and 2.0 for G1."""
+    sys.path.insert(0, str(ROOT / "experiments"))
+    import learn_student
+
+    from legoh.envs.mdp.rewards import preset_weights
+    from legoh.policies.student import student_env_overrides
+
+    for robot, kernel in (("h1", 1.0), ("g1", 2.0)):
+        args = learn_student.make_parser().parse_args(["--robot", robot])
+        cfg = learn_student.student_config(args, Path("teacher.pt"), "hike", [])
+        rewards = student_env_overrides(cfg)["rewards"]
+        weights = preset_weights(cfg.env.reward_preset, rewards, dict(cfg.robot.table6_weights),
+                                 dict(cfg.robot.reward_scales))
+        assert weights["tracking_waypoint_vel"] == kernel and weights["tracking_lin_vel"] == 0
