@@ -71,11 +71,15 @@ def train_and_evaluate(cfg: DictConfig, out_dir: Path) -> None:
     print(f"[legoh] learning curve:    {curve}")
     for name, path in result["paths"].items():
         print(f"[legoh] benchmark {name + ':':13s} {path}")
-    if cfg.algo.stage == Stage.oracle and cfg.video:
+    if cfg.video:
         from legoh.play import render_policy_video
 
         level = max(cfg.eval.levels)  # the level the trajectories picture shows
-        film = render_policy_video(cfg, run.policy, out_dir / "play.mp4", level=level)
+        if cfg.algo.stage == Stage.oracle:
+            film = render_policy_video(cfg, run.policy, out_dir / "play.mp4", level=level)
+        else:  # the student's own policy, its depth view beside the robot
+            film = render_policy_video(cfg, student.policy, out_dir / "play.mp4", level=level,
+                                       student=student)
         sr = result["levels"].get(f"level {level}", {}).get("SR", (float("nan"),))[0]
         print(f"[legoh] video:             {film['video']} (robot 0 on level {level}: "
               f"{film['distance']:.1f} m toward the terminus, "

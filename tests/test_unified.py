@@ -312,3 +312,14 @@ def test_update_precision_reaches_the_imitation_update(artefacts, tmp_path, monk
     with run.csv.open() as f:
         rows = list(csv.DictReader(f))
     assert all(math.isfinite(float(r["distill/loss_action"])) for r in rows)
+
+
+def test_the_student_main_job_films_its_student(artefacts, tmp_path, capsys):
+    """``python run.py algo=unified`` ends with a video of the student, its depth view beside
+    the robot, as the oracle's main job does. Failed before with: no play.mp4 (only the
+    oracle stage was filmed)."""
+    from legoh.app import train_and_evaluate
+
+    train_and_evaluate(tiny("unified", artefacts), tmp_path)
+    assert "[legoh] video:" in capsys.readouterr().out
+    assert list(tmp_path.glob("play.*")) and (tmp_path / "play_filmstrip.png").is_file()
