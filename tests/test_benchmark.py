@@ -115,12 +115,18 @@ def test_evaluation_writes_the_tables_and_picture(tiny: tuple) -> None:
     _, _, result = tiny
     paths = result["paths"]
     assert {p.name for p in paths.values()} == {"benchmark.md", "benchmark.csv",
-                                                "trajectories.png"}
+                                                "benchmark_runs.csv", "trajectories.png"}
     with open(paths["csv"], encoding="utf-8", newline="") as f:
         table = list(csv.reader(f))
     assert table[0] == ["category"] + [f"{column_title(m)} {s}" for m in METRICS
                                        for s in ("mean", "std")]
     assert [row[0] for row in table[1:]] == ["flat", OVERALL, "level 0"]  # per level too
+    with open(paths["runs_csv"], encoding="utf-8", newline="") as f:
+        runs = list(csv.DictReader(f))  # each run's own values, what a study pools
+    sr = column_title("SR")
+    assert [(r["run"], r["category"]) for r in runs] == [("0", "flat"), ("0", OVERALL),
+                                                         ("0", "level 0")]
+    assert float(runs[1][sr]) == pytest.approx(float(table[2][1]))  # one run: its mean
     md = paths["markdown"].read_text(encoding="utf-8")
     assert "| flat |" in md and "| overall |" in md and "| level 0 |" in md
     assert paths["trajectories"].read_bytes()[:4] == b"\x89PNG"

@@ -8,12 +8,14 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
-from legoh.eval.metrics import METRICS, summarize, write_csv
+from legoh.eval.metrics import METRICS, summarize, write_csv, write_runs_csv
 from legoh.eval.study import pool, study_table
 
 
-def write_job(folder, algo: str, seed: int, runs: dict[str, list[dict]]) -> None:
-    """A finished job: ``runs`` maps a row (category, overall) to its per-run metrics."""
+def write_job(folder, algo: str, seed: int, runs: dict[str, list[dict]],
+              keep_runs: bool = False) -> None:
+    """A finished job: ``runs`` maps a row (category, overall) to its per-run metrics;
+    ``keep_runs`` also writes them as the benchmark does (``benchmark_runs.csv``)."""
     (folder / ".hydra").mkdir(parents=True)
     cfg = {"seed": seed, "algo": {"name": algo, "total_frames": 1000},
            "eval": {"runs": len(runs["overall"])}}
@@ -21,6 +23,10 @@ def write_job(folder, algo: str, seed: int, runs: dict[str, list[dict]]) -> None
     rows = {row: summarize(values) for row, values in runs.items()}
     rows["level 0"] = rows["overall"]  # per-level rows are not categories
     write_csv(folder / "benchmark.csv", rows, label="category")
+    if keep_runs:
+        n = len(runs["overall"])
+        write_runs_csv(folder / "benchmark_runs.csv",
+                       [{row: values[r] for row, values in runs.items()} for r in range(n)])
 
 
 def per_run(sr: list[float]) -> list[dict]:
@@ -58,3 +64,25 @@ def test_the_table_has_category_rows_and_a_std_over_evaluation_runs(tmp_path) ->
     csv_rows = paths["csv"].read_text().splitlines()
     assert csv_rows[0].startswith("algo.name,category,")
     assert {r.split(",")[1] for r in csv_rows[1:]} == {"overall", "forest", "gap"}
+
+
+def test_runs_with_a_missing_metric_pool_exactly_from_the_runs_csv(tmp_path) -> None:
+    """T2R is NaN in a run without a success. From means and stds alone, job A's two T2R
+    values counted as three runs (5.25 ± 1.89); from benchmark_runs.csv the mean and std
+    are over the three values there are (5.00 ± 2.00). Failed before: the runs were not
+    kept."""
+    sweep = tmp_path / "multirun"
+    nan = float("nan")
+    t2r = {0: [nan, 5.0, 7.0], 1: [3.0]}
+    for seed, values in t2r.items():
+        write_job(sweep / f"unified-seed{seed}", "unified", seed, {"overall": runs_of(values)},
+                  keep_runs=True)
+    paths = study_table(sweep, tmp_path / "table", "plugin_hlm")
+    text = paths["markdown"].read_text()
+    assert "| 5.00 ± 2.00 |" in text
+    old = pool([(3, *summarize(runs_of(t2r[0]))["T2R"]), (1, 3.0, 0.0)])
+    assert old[:2] == pytest.approx((5.25, 1.893), abs=1e-3)  # the approximation it replaces
+
+
+def runs_of(values: list[float]) -> list[dict]:
+    return [{m: (v if m == "T2R" else 1.0) for m in METRICS} for v in values]

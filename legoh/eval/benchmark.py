@@ -14,8 +14,9 @@ most ``seconds / dt`` steps. A run's metrics pool the robots of all its levels, 
 category and overall, and per level; tables give mean ± std over runs.
 
 Files written to ``out_dir`` per evaluation: ``benchmark.md`` and ``benchmark.csv`` (per
-category and overall, then per level: rows ``level <l>``) and ``trajectories.png`` (first
-run, hardest level, one panel per category).
+category and overall, then per level: rows ``level <l>``; mean and std over runs),
+``benchmark_runs.csv`` (the same rows, each run's own values: what a study pools) and
+``trajectories.png`` (first run, hardest level, one panel per category).
 """
 
 from __future__ import annotations
@@ -44,6 +45,7 @@ from legoh.eval.metrics import (
     summarize,
     to_markdown,
     write_csv,
+    write_runs_csv,
 )
 from legoh.eval.plots import outcome_labels, plot_trajectories
 from legoh.policies.student import make_student_env, state_shapes
@@ -216,7 +218,7 @@ def evaluate(cfg: DictConfig, actor, out_dir: str | Path, label: str = "policy",
     Returns:
         ``{"label", "rows": {category..., "overall": {metric: (mean, std)}},
         "levels": {"level <l>": ...}, "runs": [per-run rows], "paths": {"markdown",
-        "csv", "trajectories"}, "wall_s", "steps"}``.
+        "csv", "runs_csv", "trajectories"}, "wall_s", "steps"}``.
     """
     ev = cfg.eval
     seed, source = eval_seed(cfg)
@@ -264,6 +266,7 @@ def evaluate(cfg: DictConfig, actor, out_dir: str | Path, label: str = "policy",
     paths["markdown"].write_text(to_markdown(rows, "Category", title) + "\n"
                                  + to_markdown(levels, "Level", "Per level"), encoding="utf-8")
     paths["csv"] = write_csv(out_dir / "benchmark.csv", {**rows, **levels}, label="category")
+    paths["runs_csv"] = write_runs_csv(out_dir / "benchmark_runs.csv", runs)
     return {"label": label, "rows": rows, "levels": levels, "runs": runs, "paths": paths,
             "wall_s": time.perf_counter() - t0, "steps": steps}
 

@@ -314,3 +314,18 @@ def write_csv(path: str | Path, rows: Rows, label: str = "method") -> Path:
         for name, stats in rows.items():
             w.writerow([name, *(repr(float(v)) for m in METRICS for v in stats[m])])
     return path
+
+
+def write_runs_csv(path: str | Path, runs: Sequence[Mapping[str, Mapping[str, float]]]
+                   ) -> Path:
+    """Every run's own values: ``run``, ``category`` (or ``overall``, ``level <l>``), then one
+    column per metric (its title). What :func:`write_csv`'s mean and std summarise, kept so
+    that runs of several jobs pool exactly (a metric NaN in some runs included)."""
+    path = Path(path)
+    with path.open("w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f)
+        w.writerow(["run", "category", *map(column_title, METRICS)])
+        for r, rows in enumerate(runs):
+            for name, values in rows.items():
+                w.writerow([r, name, *(repr(float(values[m])) for m in METRICS)])
+    return path

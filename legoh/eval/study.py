@@ -8,8 +8,10 @@ each metric over the job's ``eval.runs`` evaluation runs) and its training log
 (``train.csv``). Jobs are grouped by a config key (the method: ``algo.name``; or
 ``robot.name``). A group's row pools the evaluation runs of all its jobs (seeds): the
 paper's ± is over its 5 evaluation runs, not over training seeds, so one job's row is its
-own benchmark row, and several jobs' rows are the mean and sample std over all their runs,
-rebuilt exactly from each job's run count, mean and std (:func:`pool`).
+own benchmark row, and several jobs' rows are the mean and sample std over all their runs:
+taken from the runs' own values where every job kept them (``benchmark_runs.csv``:
+:func:`read_runs`), else rebuilt from each job's run count, mean and std (:func:`pool`,
+exact unless a metric is NaN in some of a job's runs).
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from pathlib import Path
 import numpy as np
 from omegaconf import OmegaConf
 
-from legoh.eval.metrics import METRICS, column_title, to_markdown
+from legoh.eval.metrics import METRICS, column_title, summarize, to_markdown
 
 STUDIES = {  # study -> the config key that names a row of its table
     "ablation_temporal": "algo.name",
@@ -47,6 +49,18 @@ def read_rows(path: str | Path) -> dict[str, dict[str, tuple[float, float]]]:
                                      for m in METRICS}
     if "overall" not in rows:
         raise KeyError(f"{path} has no row 'overall'")
+    return rows
+
+
+def read_runs(path: str | Path) -> dict[str, list[dict[str, float]]]:
+    """Every category row (and ``overall``) of a ``benchmark_runs.csv``: ``{row: [{metric:
+    value} per run]}``, runs in order; per-level rows left out."""
+    rows: dict[str, list[dict[str, float]]] = {}
+    with Path(path).open(newline="", encoding="utf-8") as f:
+        for rec in csv.DictReader(f):
+            if not rec["category"].startswith("level "):
+                rows.setdefault(rec["category"], []).append(
+                    {m: float(rec[column_title(m)]) for m in METRICS})
     return rows
 
 
@@ -85,10 +99,11 @@ def training_rate(path: str | Path) -> tuple[float, int]:
 def gather(sweep_dir: str | Path, group_by: str = "algo.name") -> dict[str, list[dict]]:
     """``{label: [job, ...]}`` for every finished job (one with a benchmark) of a sweep.
 
-    A job is ``{"dir", "seed", "runs", "rows", "metrics", "frames", "frames_per_s",
-    "iterations"}``: ``rows`` every category row of its benchmark (:func:`read_rows`),
-    ``metrics`` the overall means, ``runs`` its ``eval.runs``. Jobs without a
-    ``benchmark.csv`` (unfinished) are skipped.
+    A job is ``{"dir", "seed", "runs", "rows", "run_rows", "metrics", "frames",
+    "frames_per_s", "iterations"}``: ``rows`` every category row of its benchmark
+    (:func:`read_rows`), ``run_rows`` its runs' own values (:func:`read_runs`; None for a
+    job written before ``benchmark_runs.csv``), ``metrics`` the overall means, ``runs`` its
+    ``eval.runs``. Jobs without a ``benchmark.csv`` (unfinished) are skipped.
     """
     groups: dict[str, list[dict]] = {}
     for cfg_path in sorted(Path(sweep_dir).glob("*/.hydra/config.yaml")):
@@ -101,9 +116,11 @@ def gather(sweep_dir: str | Path, group_by: str = "algo.name") -> dict[str, list
         rate, iters = training_rate(job / "train.csv") if (job / "train.csv").is_file() \
             else (float("nan"), 0)
         rows = read_rows(bench)
+        runs_csv = job / "benchmark_runs.csv"
         groups.setdefault(label, []).append({
             "dir": str(job), "seed": int(cfg.seed),
             "runs": int(OmegaConf.select(cfg, "eval.runs", default=1)), "rows": rows,
+            "run_rows": read_runs(runs_csv) if runs_csv.is_file() else None,
             "metrics": {m: mean for m, (mean, _) in rows["overall"].items()},
             "frames": int(cfg.algo.total_frames), "frames_per_s": rate,
             "iterations": iters})
@@ -114,10 +131,13 @@ def gather(sweep_dir: str | Path, group_by: str = "algo.name") -> dict[str, list
 
 def group_row(jobs: list[dict], row: str) -> dict[str, tuple[float, float]] | None:
     """Row ``row`` (a category or ``overall``) of a group: each metric pooled over the
-    evaluation runs of its jobs (:func:`pool`); None when no job has that row."""
+    evaluation runs of its jobs, from the runs' own values where every job has them, else
+    by :func:`pool`; None when no job has that row."""
     have = [j for j in jobs if row in j["rows"]]
     if not have:
         return None
+    if all(j.get("run_rows") and row in j["run_rows"] for j in have):
+        return summarize([run for j in have for run in j["run_rows"][row]])
     return {m: pool([(j["runs"], *j["rows"][row][m]) for j in have])[:2] for m in METRICS}
 
 
