@@ -191,3 +191,31 @@ class TestCores:
                 y, state = core(seq[:, t], state)
             outs.append(y)
         torch.testing.assert_close(outs[0], outs[1])
+
+
+@pytest.mark.parametrize("length", [4, 12])  # the temporal and spatial sequences
+def test_attention_block_matches_pytorchs_encoder_layer(length):
+    """AttentionBlock (softmax over dim 1, for speed) is nn.TransformerEncoderLayer with the
+    same state dict: same outputs and gradients in float32, in training mode."""
+    from torch import nn
+
+    from legoh.modules.tcvit import AttentionBlock
+
+    def make(cls):
+        torch.manual_seed(0)
+        return cls(64, 4, 128, dropout=0.0, activation="gelu", batch_first=True,
+                   norm_first=True)
+
+    ref, ours = make(nn.TransformerEncoderLayer), make(AttentionBlock)
+    ours.load_state_dict(ref.state_dict())  # the same keys: old checkpoints load
+    x = torch.randn(50, length, 64)
+    xs = [x.clone().requires_grad_() for _ in range(2)]
+    ys = [m(xi) for m, xi in zip((ref, ours), xs, strict=True)]
+    for y in ys:
+        y.square().mean().backward()
+    torch.testing.assert_close(ys[1], ys[0], atol=1e-5, rtol=1e-5)
+    torch.testing.assert_close(xs[1].grad, xs[0].grad, atol=1e-7, rtol=1e-4)
+    for (name, p), q in zip(ref.named_parameters(), ours.parameters(), strict=True):
+        torch.testing.assert_close(q.grad, p.grad, atol=1e-6, rtol=1e-4, msg=name)
+    with pytest.raises(ValueError, match="mask"):
+        ours(x, src_mask=torch.zeros(length, length, dtype=torch.bool))
