@@ -86,3 +86,38 @@ def test_runs_with_a_missing_metric_pool_exactly_from_the_runs_csv(tmp_path) -> 
 
 def runs_of(values: list[float]) -> list[dict]:
     return [{m: (v if m == "T2R" else 1.0) for m in METRICS} for v in values]
+
+
+def test_paper_tables_set_a_study_beside_the_paper_and_compare_orderings(tmp_path,
+                                                                         monkeypatch) -> None:
+    """experiments/paper_tables.py reads a study's table.csv back and orders each metric in
+    the paper and in ours: Table 3 has EP-H + HLM better on SR; a study where EP-H wins SR
+    clearly disagrees, one within a std ties, and a missing study names its command."""
+    import sys
+    from pathlib import Path
+
+    from legoh.eval.paper import PAPER_TABLES, ordering
+    from legoh.eval.study import read_study_csv
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments"))
+    import paper_tables
+
+    assert ordering((5.0, 1.0), (3.0, 1.0), True) == ">"
+    assert ordering((5.0, 1.0), (3.0, 1.0), False) == "<"
+    assert ordering((5.0, 3.0), (3.0, 1.0), True) == "="
+    assert ordering((float("nan"), 0.0), (3.0, 1.0), True) == "?"
+    sweep = tmp_path / "multirun"
+    for algo, sr in (("ep_h", [40.0, 42.0, 44.0]), ("ep_h_hlm", [10.0, 12.0, 14.0])):
+        write_job(sweep / f"{algo}-seed0", algo, 0, {"overall": per_run(sr)})
+    results = tmp_path / "results"
+    study_table(sweep, results / "plugin_hlm", "plugin_hlm")
+    assert read_study_csv(results / "plugin_hlm" / "table.csv")["overall"]["ep_h"]["SR"] == (
+        42.0, 2.0)
+    monkeypatch.setattr(paper_tables, "RESULTS", results)
+    spec = {t.name: t for t in PAPER_TABLES}
+    lines, counts = paper_tables.section(spec["table3"], 1000, 3)
+    sr = next(line for line in lines if line.startswith("| SR"))
+    assert sr.endswith("| < | > | no |")  # paper: HLM better; ours: EP-H better
+    assert counts["tie"] == 5  # every other metric is 1.0 ± 0.0 for both
+    lines, counts = paper_tables.section(spec["table1"], 1000, 3)
+    assert counts == {} and "study.py ablation_temporal --run --frames 1000" in "\n".join(lines)

@@ -4,9 +4,14 @@ Values are ``(mean, std)`` per metric, copied from ``shared/paper/lego_h_appendi
 Table 4 lists the full LEGO-H (unified student) on H1 and G1 under the main protocol (all
 five categories, 512 robots); Table 8 lists the EP-H and RMA-B baselines per trail category
 under its own protocol (256 robots, 25 scenes). The paper publishes no oracle numbers.
+Tables 1-3 are the appendix's ablations (overall rows); :data:`PAPER_TABLES` pairs each
+with the study of ours that answers it (``experiments/paper_tables.py``).
 """
 
 from __future__ import annotations
+
+import math
+from dataclasses import dataclass
 
 # appendix Table 4: metric order SR, TC, TR, MEV, TTF, T2R
 _T4 = ("SR", "TC", "TR", "MEV", "TTF", "T2R")
@@ -47,3 +52,66 @@ TABLE8 = {
 }
 TABLE8 = {cat: {method: dict(zip(_T4, row, strict=True)) for method, row in methods.items()}
           for cat, methods in TABLE8.items()}
+
+# appendix Table 1 (GRU vs causal transformers at the end of TC-ViTs): SR and TTF only
+TABLE1 = {"w GRU": {"SR": (68.40, 1.34), "TTF": (7.46, 0.17)},
+          "w CTs": {"SR": (27.85, 1.02), "TTF": (5.44, 0.34)}}
+# appendix Table 2 (the action prior): full HLM vs a vanilla VAE
+TABLE2 = {
+    "full HLM": dict(zip(_T4, [(68.40, 1.34), (52.78, 1.30), (71.96, 2.37), (7.84, 0.92),
+                               (7.46, 0.17), (4.95, 0.12)], strict=True)),
+    "Vanilla VAE": dict(zip(_T4, [(53.49, 1.61), (43.00, 0.96), (64.52, 1.02), (9.26, 1.08),
+                                  (6.30, 0.15), (6.02, 0.05)], strict=True)),
+}
+# appendix Table 3 (HLM as a plug-in supervision of EP-H)
+TABLE3 = {
+    "EP-H": dict(zip(_T4, [(28.80, 0.88), (25.98, 0.22), (64.16, 0.48), (12.44, 1.32),
+                           (4.64, 0.13), (9.79, 0.16)], strict=True)),
+    "EP-H + HLM": dict(zip(_T4, [(35.53, 1.30), (30.36, 0.89), (58.23, 0.76), (10.98, 1.40),
+                                 (5.04, 0.16), (7.80, 0.37)], strict=True)),
+}
+
+
+@dataclass(frozen=True)
+class PaperTable:
+    """One of the paper's comparisons and the study of ours that answers it.
+
+    ``columns`` maps the paper's column name to our row label in the study's table (the
+    ``algo.name`` or ``robot.name`` of its jobs); ``numbers`` are the paper's, per
+    category for Table 8 (``{category: {column: {metric: (mean, std)}}}``), else one
+    ``{column: {metric: (mean, std)}}`` compared with our ``overall`` row.
+    """
+
+    name: str
+    title: str
+    study: str
+    columns: dict[str, str]
+    numbers: dict
+    per_category: bool = False
+
+
+PAPER_TABLES = (
+    PaperTable("table1", "Appendix Table 1: GRU vs causal transformers (CTs) at the end of "
+               "TC-ViTs", "ablation_temporal", {"w GRU": "unified", "w CTs": "unified_ct"},
+               TABLE1),
+    PaperTable("table2", "Appendix Table 2: the action prior, full HLM vs a vanilla VAE",
+               "ablation_prior", {"full HLM": "unified", "Vanilla VAE": "unified_vae"}, TABLE2),
+    PaperTable("table3", "Appendix Table 3: HLM as a plug-in supervision of EP-H",
+               "plugin_hlm", {"EP-H": "ep_h", "EP-H + HLM": "ep_h_hlm"}, TABLE3),
+    PaperTable("table4", "Appendix Table 4: LEGO-H on H1 and on G1", "robots",
+               {"H1": "h1", "G1": "g1"}, {"H1": TABLE4["h1"], "G1": TABLE4["g1"]}),
+    PaperTable("table8", "Appendix Table 8: EP-H vs RMA-B per trail category", "table8",
+               {"EP-H": "ep_h", "RMA-B": "rma_b"}, TABLE8, per_category=True),
+)
+
+
+def ordering(a: tuple[float, float], b: tuple[float, float], higher_is_better: bool) -> str:
+    """Which of two (mean, std) cells is better: ``">"`` (a), ``"<"`` (b), or ``"="`` when
+    the means lie within the larger std of each other (no ordering to compare); ``"?"``
+    when either mean is NaN."""
+    (ma, sa), (mb, sb) = a, b
+    if math.isnan(ma) or math.isnan(mb):
+        return "?"
+    if abs(ma - mb) <= max(0.0 if math.isnan(sa) else sa, 0.0 if math.isnan(sb) else sb):
+        return "="
+    return ">" if (ma > mb) == higher_is_better else "<"

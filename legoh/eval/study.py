@@ -32,6 +32,7 @@ STUDIES = {  # study -> the config key that names a row of its table
     "plugin_hlm": "algo.name",
     "robots": "robot.name",
     "benchmark": "algo.name",
+    "table8": "algo.name",
 }
 
 
@@ -167,6 +168,21 @@ def write_study_csv(path: Path, table: dict[str, dict[str, dict]], label: str) -
                 w.writerow([name, category, *(repr(float(v)) for m in METRICS
                                               for v in stats[m])])
     return path
+
+
+def read_study_csv(path: str | Path) -> dict[str, dict[str, dict[str, tuple[float, float]]]]:
+    """A study's ``table.csv`` (:func:`write_study_csv`) back as ``{category: {label:
+    {metric: (mean, std)}}}``; a table written before per-category rows (no ``category``
+    column) gives its rows as ``overall``."""
+    table: dict[str, dict[str, dict[str, tuple[float, float]]]] = {}
+    with Path(path).open(newline="", encoding="utf-8") as f:
+        reader = csv.DictReader(f)
+        label = reader.fieldnames[0]
+        for rec in reader:
+            row = {m: (float(rec.get(f"{column_title(m)} mean", "nan")),
+                       float(rec.get(f"{column_title(m)} std", "nan"))) for m in METRICS}
+            table.setdefault(rec.get("category", "overall"), {})[rec[label]] = row
+    return table
 
 
 def study_table(sweep_dir: str | Path, out_dir: str | Path, study: str,
