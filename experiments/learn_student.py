@@ -47,6 +47,7 @@ numbers and the ratios), teacher.json, milestones.json, summary.md and curve.png
 from __future__ import annotations
 
 import argparse
+import csv
 import hashlib
 import json
 import os
@@ -241,19 +242,53 @@ def ratios(row: dict, teacher: dict | None) -> dict:
     return out
 
 
+def snapshot_from_checkpoint(out: Path, algo: str, student) -> Path | None:
+    """The committed checkpoint as a snapshot (``snapshots/it<iteration>.pt``), unless one
+    of its iteration is there: snapshots are not committed, so on a fresh clone the
+    checkpoint is the one state of the run left to score. Its minutes come from
+    ``clock.csv``, its teacher from the last row of ``sessions.csv``; ``student`` (the
+    campaign's, built from its config) takes the checkpoint's weights."""
+    ckpt_path = out / f"{algo}.pt"
+    if not ckpt_path.is_file():
+        return None
+    ckpt = torch.load(ckpt_path, map_location="cpu", weights_only=False)
+    it = int(ckpt["iteration"])
+    path = out / "snapshots" / f"it{it:06d}.pt"
+    if path.exists():
+        return path
+    with open(out / "clock.csv", newline="") as f:
+        minutes = {int(float(r["iteration"])): float(r["minutes"]) for r in csv.DictReader(f)}
+    with open(out / "sessions.csv", newline="") as f:
+        recipe = dict(item.split("=", 1) for item in list(csv.DictReader(f))[-1]["recipe"].split()
+                      if item.startswith("teacher"))
+    algo_cfg = ckpt["config"]["algo"]
+    student.navigation.load_state_dict(ckpt["models"]["navigation"])
+    student.locomotion.load_state_dict(ckpt["models"]["locomotion"])
+    path.parent.mkdir(exist_ok=True)
+    torch.save({"iteration": it, "frames": it * algo_cfg["num_envs"] * algo_cfg["steps_per_env"],
+                "minutes": minutes[it], "policy": student.policy.state_dict(),
+                "teacher": str(ROOT / recipe["teacher"]), "teacher_sha": recipe["teacher_sha"]},
+               path)
+    print(f"[learn_student] {shown(ckpt_path)} (iteration {it}, {minutes[it]:.1f} min) -> "
+          f"{shown(path)}", flush=True)
+    return path
+
+
 def evaluate_snapshots(args) -> None:
     """Score every snapshot not yet in bench.csv (at least ``--bench-every`` training
-    minutes after the last scored one, and always the newest), and its teacher once."""
+    minutes after the last scored one, and always the newest), and its teacher once. The
+    committed checkpoint counts as a snapshot (:func:`snapshot_from_checkpoint`)."""
     out = run_dir(args)
     rows = read_rows(out / "bench.csv")
+    teacher = resolve_teacher(args.robot, args.teacher)
+    cfg = bench_config(args, teacher)
+    student = build_student(cfg)
+    snapshot_from_checkpoint(out, args.algo, student)
     if not any((out / "snapshots").glob("it*.pt")):
         print(f"[learn_student] no snapshots in {out / 'snapshots'}")
         return
     cache_path = out / "teacher.json"
     cache = json.loads(cache_path.read_text()) if cache_path.exists() else {}
-    teacher = resolve_teacher(args.robot, args.teacher)
-    cfg = bench_config(args, teacher)
-    student = build_student(cfg)
     make_env = student_eval_env_fn(cfg, student)  # the student's sensors, its state primed
     for _, snap in snapshots_to_score(out, rows, args.bench_every):
         theirs = score_teacher(cfg, make_env, Path(snap["teacher"]), cache,

@@ -77,6 +77,20 @@ def test_a_student_campaign_resumes_from_its_committed_files(tmp_path) -> None:
     meta = json.loads((clone / "milestones.json").read_text())
     assert set(meta["milestones"]) == {"s1", "s2", "s3"} and (clone / "curve.png").is_file()
 
+    # a fresh clone has no snapshots: --evaluate scores the committed checkpoint. Failed
+    # before with "no snapshots" (the H1 student's 45-minute state could not be scored)
+    fresh = tmp_path / "session3" / "h1-unified-s0"
+    fresh.mkdir(parents=True)
+    for name in ("unified.pt", "train.csv", "clock.csv", "evals.csv", "sessions.csv",
+                 "teacher.json"):
+        shutil.copy(clone / name, fresh / name)
+    out = _run(fresh, "--evaluate", *bench)
+    assert "bench it" in out and out.count("RandomMix 0-2 SR") == 1  # the teacher cached
+    row = _rows(fresh / "bench.csv")[-1]
+    assert int(row["iteration"]) == iters[-1]
+    assert float(row["minutes"]) == pytest.approx(float(clock["minutes"]), abs=0.01)
+    assert row["teacher_d_sr"] == _rows(clone / "bench.csv")[-1]["teacher_d_sr"]
+
 
 def test_the_teacher_is_the_shipped_oracle_else_the_hiking_one(tmp_path, monkeypatch, capsys):
     sys.path.insert(0, str(ROOT / "experiments"))
