@@ -119,3 +119,34 @@ def test_unknown_student_is_refused(cfg):
         make_student("ep-h", dims, 10, 4.8)
     with pytest.raises(ValueError, match="needs depth frames"):
         make_student("ep_h", StudentDims(proprio=39, history=10, depth=None), 10, 4.8)
+
+
+def test_unroll_encodes_fresh_frames_ahead_with_the_same_result(cfg, monkeypatch):
+    """unroll encodes every fresh frame of the batch in one call (LEGO-H's TC-ViTs
+    encoder); outputs and gradients equal those of encoding step by step."""
+    import legoh.modules.students as students
+
+    _, student, env = build(cfg, "lego_h")
+    try:
+        torch.manual_seed(0)
+        with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
+            td = env.rollout(STEPS, student.policy, break_when_any_done=False)
+    finally:
+        env.close()
+    nav = student.navigation
+    ahead = students.encode_fresh(nav.navigator, td)
+    fresh = (td[keys.IS_INIT] | td[keys.DEPTH_FRESH]).reshape(NUM_ENVS, STEPS)
+    assert ahead.shape[:2] == (NUM_ENVS, STEPS) and (ahead[~fresh] == 0).all()
+
+    def run():
+        nav.zero_grad()
+        out = unroll(nav, td)
+        (out[keys.STUDENT_LATENT].square().sum() + out[keys.NAV_GOAL].square().sum()).backward()
+        return out, {n: p.grad.clone() for n, p in nav.named_parameters()}
+
+    out, grads = run()
+    monkeypatch.setattr(students, "encode_fresh", lambda nav, batch: None)  # step by step
+    out_ref, grads_ref = run()
+    torch.testing.assert_close(out[keys.STUDENT_LATENT], out_ref[keys.STUDENT_LATENT])
+    for name, g in grads.items():
+        torch.testing.assert_close(g, grads_ref[name], rtol=1e-4, atol=1e-6, msg=name)

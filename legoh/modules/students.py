@@ -91,9 +91,16 @@ class Navigator(nn.Module):
     num_goals: int = 0
     in_keys: tuple = (keys.GOAL, keys.PROPRIO)
 
-    def frame(self, obs: dict, state: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """Depth-rate step on B rows -> (held (B, held_dim), new state (B, *state_shape))."""
+    def frame(self, obs: dict, state: torch.Tensor, features: torch.Tensor | None = None
+              ) -> tuple[torch.Tensor, torch.Tensor]:
+        """Depth-rate step on B rows -> (held (B, held_dim), new state (B, *state_shape));
+        ``features``: these rows' :meth:`encode`, when computed ahead."""
         raise NotImplementedError
+
+    def encode(self, obs: dict) -> torch.Tensor | None:
+        """The state-free features of a frame (B, F), which :func:`unroll` computes for all
+        fresh frames of a batch in one call; None: the navigator has no such part."""
+        return None
 
     def act(self, obs: dict, held: torch.Tensor) -> dict[str, torch.Tensor]:
         """Policy-rate outputs: ``latent`` (B, 32), ``nav_goal`` (B, nav_dim),
@@ -122,8 +129,13 @@ class LegoHNavigator(Navigator):
         self.num_goals = self.cfg.num_goals
         self.held_dim = LATENT_DIM + 2 + 2 * self.num_goals
 
-    def frame(self, obs, state):
-        out = self.net(obs[keys.DEPTH], obs[keys.GOAL], obs[keys.PROPRIO], state)
+    def encode(self, obs):
+        return self.net.encode(obs[keys.DEPTH], obs[keys.GOAL][:, :2])
+
+    def frame(self, obs, state, features=None):
+        if features is None:
+            features = self.encode(obs)
+        out = self.net.recur(features, obs[keys.GOAL], obs[keys.PROPRIO], state)
         held = torch.cat([out["latent"], out["goal_correction"],
                           out["near_goals"].flatten(-2)], dim=-1)
         return held, out["state"]
@@ -169,7 +181,7 @@ class EPHNavigator(Navigator):
         self.state_shape = (hidden,)
         self.held_dim = LATENT_DIM + 2
 
-    def frame(self, obs, state):
+    def frame(self, obs, state, features=None):  # no encode(): features is None
         depth = obs[keys.DEPTH][:, -1:].clamp(max=self.clip)
         x = torch.cat([self.cnn(depth), obs[keys.GOAL], obs[keys.PROPRIO]], dim=-1)
         h = self.gru(x, state)
@@ -205,7 +217,7 @@ class RMABNavigator(Navigator):
         super().__init__()
         self.history = HistoryLatent(dims)
 
-    def frame(self, obs, state):
+    def frame(self, obs, state, features=None):  # no encode(): features is None
         return torch.zeros(state.shape[0], 1, device=state.device), state
 
     def act(self, obs, held):
@@ -229,7 +241,7 @@ class RMAHNavigator(Navigator):
         self.history = HistoryLatent(dims)
         self.held_dim = 2 * num_goals
 
-    def frame(self, obs, state):
+    def frame(self, obs, state, features=None):  # no encode(): features is None
         x = torch.cat([self.cnn(obs[keys.DEPTH]), obs[keys.GOAL]], dim=-1)
         return self.goals(x), state
 
@@ -286,11 +298,13 @@ class NavigationModule(TensorDictModuleBase):
         state = td.get(keys.NAV_STATE) * (~start).view(-1, *[1] * len(nav.state_shape))
         held = td.get(keys.NAV_HELD)
         fresh = start | td.get(keys.DEPTH_FRESH).reshape(-1) if nav.uses_depth else None
+        features = td.get(keys.NAV_FEATURES, None)  # set by unroll, computed ahead
         if fresh is None or bool(fresh.all()):
-            held, state = nav.frame(obs, state)
+            held, state = nav.frame(obs, state, features)
         elif bool(fresh.any()):
             rows = fresh.nonzero().squeeze(-1)
-            new_held, new_state = nav.frame({k: v[rows] for k, v in obs.items()}, state[rows])
+            new_held, new_state = nav.frame({k: v[rows] for k, v in obs.items()}, state[rows],
+                                            None if features is None else features[rows])
             held = held.index_copy(0, rows, new_held)
             state = state.index_copy(0, rows, new_state)
         out = nav.act(obs, held)
@@ -368,9 +382,12 @@ def unroll(navigation: NavigationModule, batch: TensorDictBase) -> TensorDictBas
     # the keys the module reads, split into T steps once: indexing the whole batch (every
     # key) at each step took a sixth of the imitation update (profiled at 64 envs)
     steps = batch.select(*navigation.in_keys).unbind(1)
+    features = encode_fresh(navigation.navigator, batch)
     state, held = batch.get(keys.NAV_STATE)[:, 0], batch.get(keys.NAV_HELD)[:, 0]
-    for step in steps:
+    for t, step in enumerate(steps):
         step = step.clone(recurse=False)
+        if features is not None:
+            step.set(keys.NAV_FEATURES, features[:, t])
         step.set(keys.NAV_STATE, state)
         step.set(keys.NAV_HELD, held)
         step = navigation(step)
@@ -378,3 +395,18 @@ def unroll(navigation: NavigationModule, batch: TensorDictBase) -> TensorDictBas
         outs.append(step.select(keys.STUDENT_LATENT, keys.NAV_GOAL, keys.NEAR_GOALS,
                                 keys.GOAL_CORRECTION))
     return torch.stack(outs, dim=1)
+
+
+def encode_fresh(nav: Navigator, batch: TensorDictBase) -> torch.Tensor | None:
+    """(N, T, F): ``nav.encode`` of every fresh frame of the batch (a new depth frame or an
+    episode's first step), in one call; zeros elsewhere (never read). None when the
+    navigator has no state-free part or sees no depth."""
+    if not nav.uses_depth:
+        return None
+    n, t = batch.shape[:2]
+    fresh = (batch.get(keys.IS_INIT) | batch.get(keys.DEPTH_FRESH)).reshape(n, t)
+    idx = fresh.nonzero(as_tuple=True)
+    features = nav.encode({k: batch.get(k)[idx] for k in nav.in_keys})
+    if features is None:
+        return None
+    return features.new_zeros(n, t, features.shape[-1]).index_put(idx, features)

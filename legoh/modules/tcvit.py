@@ -257,9 +257,20 @@ class TCViTs(nn.Module):
             delta_g0, m; ``near_goals`` (B, num_goals, 2) g1..g3, robot yaw frame, m;
             ``state`` (B, *state_shape) the next state.
         """
-        alpha = self.encoder(depth, goal[:, :2])
+        return self.recur(self.encode(depth, goal[:, :2]), goal, proprio, state)
+
+    def encode(self, depth: Tensor, terminus: Tensor) -> Tensor:
+        """The state-free part of a step: depth (B, T, H, W) and terminus (B, 2) -> gamma
+        (B, gamma_dim). Kept apart so that a training update can encode every fresh frame
+        of a batch in one call (per frame 1.7x cheaper at 320 frames than at 64)."""
+        alpha = self.encoder(depth, terminus)
         beta = self.cnn(depth[:, -1])
-        gamma = self.mix(torch.cat([alpha, beta], dim=-1))
+        return self.mix(torch.cat([alpha, beta], dim=-1))
+
+    def recur(self, gamma: Tensor, goal: Tensor, proprio: Tensor, state: Tensor
+              ) -> dict[str, Tensor]:
+        """The recurrent part of a step: gamma (:meth:`encode`), the goals, proprioception
+        and the state -> the outputs of :meth:`forward`."""
         points = squash_point(goal.reshape(goal.shape[0], -1, 2)).flatten(1)  # bounded goals
         h, new_state = self.core(torch.cat([gamma, points, proprio], dim=-1), state)
         return {
