@@ -102,6 +102,38 @@ def shipped_section() -> list[str]:
         if pic.exists():
             lines += ["", f"![{robot} trajectories]({rel(pic)})"]
         lines.append("")
+    return lines + students_section()
+
+
+def students_section() -> list[str]:
+    """Each shipped student (``pretrained/<robot>_<algo>.json``, not an oracle) beside its
+    robot's shipped oracle on the same protocol, and the paper's LEGO-H (Table 4)."""
+    lines = []
+    for path in sorted(PRETRAINED.glob("*_*.json")):
+        card = json.loads(path.read_text())
+        if card.get("stage", "oracle") == "oracle":
+            continue
+        robot, stage = card["robot"], card["stage"]
+        mine = read_table(PRETRAINED / f"{robot}_{stage}_eval" / "benchmark.csv")
+        teacher_csv = PRETRAINED / f"{robot}_oracle_eval" / "benchmark.csv"
+        teacher = read_table(teacher_csv) if teacher_csv.exists() else {}
+        minutes = "n/a" if card.get("minutes") is None else f"{card['minutes']:.0f}"
+        lines += [f"### {robot.upper()} student, {stage} (`pretrained/{card['file']}`)", "",
+                  f"{card['frames']:,} frames, {minutes} minutes of stage-2 training on a "
+                  f"2-core CPU, {card.get('origin', '')} (commit `{card['commit']}`, run "
+                  f"`{card['run']}`). SR beside its oracle on the hiking protocol (robots "
+                  "per level and runs as each card says):", "",
+                  "| Category | SR student | SR its oracle | TC student | TR student | "
+                  "FR student |", "|---|---|---|---|---|---|"]
+        for cat in [*CATEGORIES, "overall"]:
+            if cat in mine:
+                theirs = teacher.get(cat, {}).get("SR", (float("nan"), 0.0))
+                lines.append(f"| {cat} | {cell(mine[cat]['SR'])} | {cell(theirs)} | "
+                             f"{cell(mine[cat]['TC'])} | {cell(mine[cat]['TR'])} | "
+                             f"{cell(mine[cat]['FR'])} |")
+        ref = TABLE4.get(robot, {})
+        lines += ["", f"The paper's LEGO-H on {robot.upper()} (Table 4, full training): SR "
+                      f"{cell(ref.get('SR'))} %.", ""]
     return lines
 
 
