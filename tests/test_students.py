@@ -32,6 +32,16 @@ def build(cfg, name):
     return run_cfg, student, env
 
 
+def deterministic_rollout(student, env):
+    """STEPS steps of the student's mean action from seed 0; closes ``env``."""
+    try:
+        torch.manual_seed(0)
+        with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
+            return env.rollout(STEPS, student.policy, break_when_any_done=False)
+    finally:
+        env.close()
+
+
 @pytest.mark.parametrize("name", sorted(STUDENTS))
 def test_student_rollout_keys_shapes_and_tiling(cfg, name):
     run_cfg, student, env = build(cfg, name)
@@ -60,12 +70,7 @@ def test_student_rollout_keys_shapes_and_tiling(cfg, name):
 @pytest.mark.parametrize("name", sorted(STUDENTS))
 def test_unroll_reproduces_collection_and_gradients_reach_every_parameter(cfg, name):
     run_cfg, student, env = build(cfg, name)
-    try:
-        torch.manual_seed(0)
-        with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
-            td = env.rollout(STEPS, student.policy, break_when_any_done=False)
-    finally:
-        env.close()
+    td = deterministic_rollout(student, env)
     out = unroll(student.navigation, td)
     torch.testing.assert_close(out[keys.STUDENT_LATENT], td[keys.STUDENT_LATENT])
     torch.testing.assert_close(out[keys.NAV_GOAL], td[keys.NAV_GOAL])
@@ -127,12 +132,7 @@ def test_unroll_encodes_fresh_frames_ahead_with_the_same_result(cfg, monkeypatch
     import legoh.modules.students as students
 
     _, student, env = build(cfg, "lego_h")
-    try:
-        torch.manual_seed(0)
-        with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
-            td = env.rollout(STEPS, student.policy, break_when_any_done=False)
-    finally:
-        env.close()
+    td = deterministic_rollout(student, env)
     nav = student.navigation
     ahead = students.encode_fresh(nav.navigator, td)
     fresh = (td[keys.IS_INIT] | td[keys.DEPTH_FRESH]).reshape(NUM_ENVS, STEPS)
