@@ -59,6 +59,15 @@ def test_a_campaign_resumes_from_its_committed_files(tmp_path) -> None:
     assert [int(r["iteration"]) for r in sessions] == [0, it0]
     assert str(ROOT) not in (clone / "sessions.csv").read_text()  # clones differ in path
     assert recipe_changes(clone) == [(float(sessions[1]["frames"]), "env.curriculum.up=0.7")]
+    # two runs side by side against minutes: a picture and a row per walk test
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "MUJOCO_GL": "egl"}
+    subprocess.run([sys.executable, str(ROOT / "experiments/learn_hike.py"), "--compare",
+                    str(first), str(clone)], env=env, cwd=ROOT, check=True, capture_output=True)
+    stem = first.parent / "h1-s0-compare-h1-s0-h1-s0"
+    table = stem.with_suffix(".md").read_text()
+    first_evals = list(csv.DictReader(open(first / "evals.csv")))
+    assert table.count("| h1-s0 |") == len(evals) + len(first_evals)
+    assert stem.with_suffix(".png").stat().st_size > 10_000
 
 
 def test_the_training_config_keeps_the_robots_reward_scales() -> None:
