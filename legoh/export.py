@@ -24,6 +24,7 @@ Tracing (not scripting): the students' control flow does not depend on data insi
 from __future__ import annotations
 
 import json
+import warnings
 from pathlib import Path
 
 import torch
@@ -89,7 +90,11 @@ def export_student(student: Student, path: str | Path, meta: dict | None = None)
     deployed = DeployedStudent(student).eval()
     x = example_inputs(student)
     enc = (x["depth"], x["goal"], x["proprio"], x["proprio_history"], x["state"])
-    with torch.no_grad():
+    with torch.no_grad(), warnings.catch_warnings():
+        # the libraries' shape checks (tensordict's distribution, torch's GRU input) on
+        # shapes the traced file fixes anyway: the tracer's warnings about them are noise
+        warnings.filterwarnings("ignore", category=torch.jit.TracerWarning,
+                                module=r"(tensordict\.nn\.distributions|torch\.nn\.modules\.rnn)")
         held, _ = deployed.encode(*enc)
         traced = torch.jit.trace_module(deployed, {
             "encode": enc,

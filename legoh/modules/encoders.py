@@ -91,7 +91,8 @@ class HistoryConvEncoder(nn.Module):
 
     def forward(self, history: torch.Tensor) -> torch.Tensor:
         """(B..., T, P) -> (B..., out_dim)."""
-        if history.shape[-2] != self.history:
+        # a shape check, not data: skipped while tracing (the export fixes the shapes)
+        if not torch.jit.is_tracing() and history.shape[-2] != self.history:
             raise ValueError(f"expected {self.history} history steps, got {history.shape[-2]}")
         batch = history.shape[:-2]
         x = self.embed(history.reshape(-1, *history.shape[-2:]))  # (b, T, 3c)
