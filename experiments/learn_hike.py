@@ -23,7 +23,9 @@ yet scored with the benchmark (robots placed along the trail, randomisation on) 
 Writes experiments/results/learn_hike/<robot>-s<seed>[-tag]/: oracle.pt, train.csv,
 sessions.csv (each start: iteration, commit, recipe), clock.csv (training minutes per
 iteration), evals.csv (walk tests), bench.csv (benchmark per snapshot, category and level),
-milestones.json, summary.md, curve.png and (``--video``) videos of the final policy.
+milestones.json, summary.md and curve.png. The videos in ``videos/`` are the play mode's
+(``python run.py mode=play robot=<robot> checkpoint=<run folder>/oracle.pt trail=hurdle
+'eval.levels=[2]' eval.spawn_remaining=null``: from the trail start, level 2).
 """
 
 from __future__ import annotations
