@@ -162,7 +162,7 @@ def campaigns_section() -> list[str]:
         lines.append(f"| `{name}` | {milestone_text(meta['milestones'])} | {link} |")
     lines.append("")
     for path in runs:
-        if path.parent.parent.name == "learn_hike" and (path.parent / "curve.png").exists():
+        if path.parent.parent.name != "learn_walk" and (path.parent / "curve.png").exists():
             lines += [f"![{path.parent.name}]({rel(path.parent / 'curve.png')})", ""]
     return lines
 
