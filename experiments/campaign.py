@@ -251,3 +251,56 @@ def smooth(y: np.ndarray, k: int = 25) -> np.ndarray:
     num = np.convolve(np.where(ok, y, 0.0), np.ones(k), "same")
     den = np.convolve(ok.astype(float), np.ones(k), "same")
     return np.where(den > 0, num / np.maximum(den, 1e-9), np.nan)
+
+
+def compare_runs(runs: list[Path], stem: Path, test: str, test_title: str) -> Path:
+    """One picture and table of several runs of a campaign script (A/B of a recipe or a
+    loop): each walk test (``evals.csv``, columns ``<test>_walked_share``,
+    ``<test>_distance_m``, ``<test>_fall_rate``) against training minutes and against
+    frames (a faster loop shows on the first, a sample-efficiency cost on the second), the
+    mean training level and training falls. Written as ``stem.{png,md}``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from learn_walk import read_evals
+
+    missing = [str(r) for r in runs if not (r / "evals.csv").exists()]
+    if missing:
+        raise SystemExit(f"--compare: no evals.csv in {', '.join(missing)}")
+    fig, axes = plt.subplots(1, 4, figsize=(20, 4))
+    lines = ["| run | minutes | frames (M) | walking >= 10 m (%) | m toward the terminus | "
+             "falls in the test (%) | mean level | training falls (%) | randomisation |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for i, run in enumerate(runs):
+        e, c = read_evals(run), f"C{i}"
+        for ax, x in ((axes[0], e["minutes"]), (axes[1], e["frames"] / 1e6)):
+            ax.plot(x, 100 * e[f"{test}_walked_share"], color=c, label=run.name)
+            ax.plot(x, 10 * e[f"{test}_distance_m"], "--", color=c)
+        axes[2].plot(e["minutes"], e["level_mean"], color=c, label=run.name)
+        axes[3].plot(e["minutes"], 100 * e["train_fell"], color=c, label=run.name)
+        for j in range(len(e["minutes"])):
+            lines.append(f"| {run.name} | {e['minutes'][j]:.1f} | {e['frames'][j] / 1e6:.2f} | "
+                         f"{100 * e[f'{test}_walked_share'][j]:.0f} | "
+                         f"{e[f'{test}_distance_m'][j]:.1f} | "
+                         f"{100 * e[f'{test}_fall_rate'][j]:.0f} | {e['level_mean'][j]:.2f} | "
+                         f"{100 * e['train_fell'][j]:.0f} | {e['randomization'][j]:.2f} |")
+    panels = [("training minutes", f"({test}) walk test: % walking >= 10 m (dashed: 10 x m)"),
+              ("frames (M)", f"({test}) the same against frames"),
+              ("training minutes", "training: mean level"),
+              ("training minutes", "training: falls / ended episodes (%)")]
+    for ax, (xlabel, title) in zip(axes, panels, strict=True):
+        ax.set_title(title, fontsize=9)
+        ax.set_xlabel(xlabel)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    for ax in axes[:2]:
+        ax.axhline(80, color="k", lw=0.5)
+    fig.tight_layout()
+    fig.savefig(stem.with_suffix(".png"), dpi=90)
+    plt.close(fig)
+    stem.with_suffix(".md").write_text(
+        f"# {', '.join(r.name for r in runs)}\n\nEach walk test ({test_title}) against "
+        "training minutes.\n\n" + "\n".join(lines) + "\n", encoding="utf-8")
+    print(stem.with_suffix(".md").read_text(encoding="utf-8"))
+    return stem

@@ -45,6 +45,7 @@ import torch  # noqa: E402
 from campaign import (  # noqa: E402
     Session,
     add_campaign_arguments,
+    compare_runs,
     finish_figure,
     mark_recipe_changes,
     milestone_lines,
@@ -261,57 +262,15 @@ def plot(out: Path) -> None:
 
 
 def compare(args) -> Path:
-    """One picture and table of several runs against training minutes: the walk test (c),
-    the mean training level, training falls and randomisation. ``--compare TAG ...`` names
-    runs of ``--robot`` and ``--seed`` by tag (``-``: the untagged campaign) or by folder.
-    Written beside the first run as ``<robot>-s<seed>-compare-<names>.{png,md}``; the runs
-    must have evals.csv."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    """``--compare TAG ...``: runs of ``--robot`` and ``--seed`` by tag (``-``: the untagged
+    campaign) or by folder, side by side (:func:`campaign.compare_runs`), written beside the
+    first run as ``<robot>-s<seed>-compare-<names>.{png,md}``."""
     base = f"{args.robot}-s{args.seed}"
     runs = [Path(t) if Path(t).is_dir() else OUT / (base if t == "-" else f"{base}-{t}")
             for t in args.compare]
-    missing = [str(r) for r in runs if not (r / "evals.csv").exists()]
-    if missing:
-        raise SystemExit(f"--compare: no evals.csv in {', '.join(missing)}")
     names = ["campaign" if t == "-" else Path(t).name for t in args.compare]
-    stem = runs[0].parent / f"{base}-compare-{'-'.join(names)}"
-    fig, axes = plt.subplots(1, 4, figsize=(20, 4))
-    lines = ["| run | minutes | frames (M) | walking >= 10 m (%) | m toward the terminus | "
-             "falls in the test (%) | mean level | training falls (%) | randomisation |",
-             "|---|---|---|---|---|---|---|---|---|"]
-    for i, run in enumerate(runs):
-        e, c = read_evals(run), f"C{i}"
-        axes[0].plot(e["minutes"], 100 * e["c_walked_share"], color=c, label=run.name)
-        axes[0].plot(e["minutes"], 10 * e["c_distance_m"], "--", color=c)
-        axes[1].plot(e["minutes"], e["level_mean"], color=c, label=run.name)
-        axes[2].plot(e["minutes"], 100 * e["train_fell"], color=c, label=run.name)
-        axes[3].plot(e["minutes"], e["randomization"], color=c, label=run.name)
-        for j in range(len(e["minutes"])):
-            lines.append(f"| {run.name} | {e['minutes'][j]:.1f} | {e['frames'][j] / 1e6:.2f} | "
-                         f"{100 * e['c_walked_share'][j]:.0f} | {e['c_distance_m'][j]:.1f} | "
-                         f"{100 * e['c_fall_rate'][j]:.0f} | {e['level_mean'][j]:.2f} | "
-                         f"{100 * e['train_fell'][j]:.0f} | {e['randomization'][j]:.2f} |")
-    axes[0].axhline(80, color="k", lw=0.5)
-    titles = ["(c) walk test: % walking >= 10 m (dashed: 10 x m)", "training: mean level",
-              "training: falls / ended episodes (%)", "training: randomisation strength"]
-    for ax, t in zip(axes, titles, strict=True):
-        ax.set_title(t)
-        ax.set_xlabel("training minutes")
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(stem.with_suffix(".png"), dpi=90)
-    plt.close(fig)
-    stem.with_suffix(".md").write_text(
-        f"# learn_hike: {', '.join(r.name for r in runs)}\n\nEach walk test (16 robots, "
-        "RandomMix level 0, randomisation on, 30 s) against training minutes.\n\n"
-        + "\n".join(lines) + "\n", encoding="utf-8")
-    print(stem.with_suffix(".md").read_text(encoding="utf-8"))
-    return stem
+    return compare_runs(runs, runs[0].parent / f"{base}-compare-{'-'.join(names)}", "c",
+                        "16 robots, RandomMix level 0, randomisation on, 30 s")
 
 
 def make_parser() -> argparse.ArgumentParser:

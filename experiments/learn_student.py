@@ -4,6 +4,7 @@ as a campaign of sessions that each resume from the last one's committed checkpo
     python experiments/learn_student.py [--robot h1] [--seed 0] [--algo unified] [--minutes 85]
     python experiments/learn_student.py --evaluate [--robot h1] [--seed 0]   # (s2), (s3)
     python experiments/learn_student.py --plot [--robot h1] [--seed 0]
+    python experiments/learn_student.py --compare - fast [--robot h1] [--seed 0]   # an A/B
 
 Teacher (``--teacher``): ``pretrained`` (default) is ``pretrained/<robot>_oracle.pt``; while
 the repository ships none, the H1 hiking oracle of the learn_hike campaign,
@@ -63,6 +64,7 @@ import torch  # noqa: E402
 from campaign import (  # noqa: E402
     Session,
     add_campaign_arguments,
+    compare_runs,
     finish_figure,
     mark_recipe_changes,
     milestone_lines,
@@ -407,11 +409,27 @@ def make_parser() -> argparse.ArgumentParser:
     parser.add_argument("--teacher", default="pretrained",
                         help="pretrained (else the learn_hike oracle) | PATH")
     parser.add_argument("--trail", default="hike", help="training trail")
+    parser.add_argument("--compare", nargs="+", metavar="TAG",
+                        help="draw these runs' walk tests side by side ('-': untagged)")
     return parser
+
+
+def compare(args) -> Path:
+    """``--compare TAG ...``: runs of ``--robot``, ``--algo`` and ``--seed`` by tag (``-``:
+    the untagged campaign) or by folder, side by side (:func:`campaign.compare_runs`),
+    written beside the first as ``<robot>-<algo>-s<seed>-compare-<names>.{png,md}``."""
+    base = f"{args.robot}-{args.algo}-s{args.seed}"
+    runs = [Path(t) if Path(t).is_dir() else OUT / (base if t == "-" else f"{base}-{t}")
+            for t in args.compare]
+    names = ["campaign" if t == "-" else Path(t).name for t in args.compare]
+    return compare_runs(runs, runs[0].parent / f"{base}-compare-{'-'.join(names)}", "s1",
+                        "16 robots, flat ground from depth, randomisation off, 30 s")
 
 
 def main() -> None:
     args = make_parser().parse_intermixed_args()  # overrides may come between options
+    if args.compare:
+        return compare(args)
     if args.plot:
         return write_summary(run_dir(args), args)
     if args.evaluate:

@@ -90,6 +90,12 @@ def test_a_student_campaign_resumes_from_its_committed_files(tmp_path) -> None:
     assert int(row["iteration"]) == iters[-1]
     assert float(row["minutes"]) == pytest.approx(float(clock["minutes"]), abs=0.01)
     assert row["teacher_d_sr"] == _rows(clone / "bench.csv")[-1]["teacher_d_sr"]
+    # an A/B: two runs side by side, a picture and a row per walk test
+    _run(first, "--compare", str(first), str(clone))
+    stem = first.parent / "h1-unified-s0-compare-h1-unified-s0-h1-unified-s0"
+    table = stem.with_suffix(".md").read_text()
+    assert table.count("| h1-unified-s0 |") == len(evals) + len(_rows(first / "evals.csv"))
+    assert stem.with_suffix(".png").stat().st_size > 10_000
 
 
 def test_the_teacher_is_the_shipped_oracle_else_the_hiking_one(tmp_path, monkeypatch, capsys):
