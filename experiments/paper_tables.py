@@ -7,12 +7,19 @@ Each paper table is answered by one study of ours (``legoh.eval.paper.PAPER_TABL
 Table 1 by ``ablation_temporal`` (GRU vs causal transformer), Table 2 by ``ablation_prior``
 (HLM vs vanilla VAE; our third row, no prior, has no paper column), Table 3 by
 ``plugin_hlm`` (EP-H vs EP-H + HLM), Table 4 by ``robots`` (H1 vs G1) and Table 8 by
-``table8`` (EP-H vs RMA-B per trail category). ``--run`` runs the studies first, each with
-``experiments/study.py --run`` (every job of a study: the robot's shipped oracle as its
-teacher, read-only, the same stage-2 frames, ``--eval-runs`` evaluation runs; the std of
-our cells is over those runs, as the paper's is over its 5). Without ``--run`` the tables
-are read from ``experiments/results/<study>/table.csv``; a study not run yet is listed with
-the command that runs it.
+``table8`` (EP-H vs RMA-B per trail category). ``--run`` first runs every job those studies
+compare, each once (LEGO-H on H1 answers four tables; 8 jobs a seed, not 11), one at a
+time: ``run.py`` with the campaign's recipe (``RECIPE``: learn_student's hike map, reward
+preset and curriculum; scored on all five categories, levels 0-4), the robot's shipped
+oracle teaching (read-only), the same ``--frames`` and ``--eval-runs`` (the std of our cells
+is over those runs, as the paper's is over its 5); Hydra overrides after the options go to
+every job (e.g. the fast loop). Each finished job's record (config, benchmark, training
+log) is copied to ``experiments/results/paper_jobs/<robot>-<algo>-seed<seed>/`` and
+committed, so a sweep longer than a session resumes on a fresh clone: a recorded job is
+skipped, a killed one resumes from its checkpoint in ``multirun/paper/``. The studies'
+tables are then written from the records. Without ``--run`` the tables are read from
+``experiments/results/<study>/table.csv``; a study not run yet is listed with the command
+that runs it.
 
 Per metric the two methods are ordered in the paper and in ours (``ordering``: better,
 worse, or a tie when the means lie within one std); "agree" says whether the orderings
@@ -22,18 +29,28 @@ match where both separate the methods. Writes experiments/results/paper_tables.m
 from __future__ import annotations
 
 import argparse
+import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "experiments"))
 
 from legoh.eval.metrics import HIGHER_IS_BETTER, column_title  # noqa: E402
 from legoh.eval.paper import PAPER_TABLES, PaperTable, ordering  # noqa: E402
-from legoh.eval.study import read_study_csv  # noqa: E402
+from legoh.eval.study import read_study_csv, study_grid, study_table  # noqa: E402
+from learn_hike import HIKE  # noqa: E402
 
 RESULTS = ROOT / "experiments" / "results"
+JOBS = RESULTS / "paper_jobs"  # each job's record, committed: a later session skips the job
+RUNS = ROOT / "multirun" / "paper"  # the jobs' run folders (checkpoints: not committed)
+RECORD = (".hydra/config.yaml", "benchmark.csv", "benchmark_runs.csv", "train.csv")
+# Every job trains as learn_student's campaign does (the hike map, the hike reward preset and
+# its curriculum) and is scored on all five categories, levels 0-4; no video
+RECIPE = ["trail=hike", "env.reward_preset=hike", *HIKE, "eval.levels=[0,1,2,3,4]",
+          "video=false"]
 NAN = (float("nan"), float("nan"))
 
 
@@ -70,7 +87,7 @@ def compare(spec: PaperTable, numbers: dict, ours: dict) -> tuple[list[str], dic
 
 def section(spec: PaperTable, frames: int | None, eval_runs: int) -> tuple[list[str], dict]:
     path = RESULTS / spec.study / "table.csv"
-    run = (f"`python experiments/study.py {spec.study} --run --frames {frames or 'F'} "
+    run = (f"`python experiments/paper_tables.py --run --frames {frames or 'F'} "
            f"--eval-runs {eval_runs}`")
     lines = [f"## {spec.title}", ""]
     if not path.is_file():
@@ -99,6 +116,53 @@ def summary_line(counts: dict[str, int]) -> str:
             f"{counts.get('paper ties', 0)}; {counts.get('–', 0)} without a value.")
 
 
+def planned_jobs(specs, seeds: list[int]) -> dict[str, tuple[str, str, int]]:
+    """``{job: (robot, algo, seed)}``: every job the studies of ``specs`` compare, each once
+    (LEGO-H on H1 is in four studies, EP-H in two)."""
+    jobs = {}
+    for spec in specs:
+        grid = study_grid(spec.study)
+        for robot in grid["robot.name"]:
+            for algo in grid["algo.name"]:
+                for seed in seeds:
+                    jobs.setdefault(f"{robot}-{algo}-seed{seed}", (robot, algo, seed))
+    return jobs
+
+
+def run_job(name: str, robot: str, algo: str, seed: int, frames: int, eval_runs: int,
+            overrides: list[str]) -> Path:
+    """Train and benchmark one job (``run.py`` in ``multirun/paper/<job>``, resumed from its
+    checkpoint if a killed run left one), then copy its record to ``paper_jobs/<job>``. A
+    job recorded already is skipped, unless its frames or evaluation runs differ: refused."""
+    record = JOBS / name
+    if (record / "benchmark.csv").is_file():
+        from omegaconf import OmegaConf
+
+        cfg = OmegaConf.load(record / ".hydra" / "config.yaml")
+        done = (int(cfg.algo.total_frames), int(cfg.eval.runs))
+        if done != (frames, eval_runs):
+            raise SystemExit(f"[paper_tables] {record} was run with algo.total_frames="
+                             f"{done[0]}, eval.runs={done[1]}, not --frames {frames} "
+                             f"--eval-runs {eval_runs}: remove it, or pass its settings")
+        print(f"[paper_tables] {name}: recorded already ({record})", flush=True)
+        return record
+    out = RUNS / name
+    if not (out / "benchmark.csv").is_file():
+        cmd = [sys.executable, str(ROOT / "run.py"), f"robot={robot}", f"algo={algo}",
+               f"seed={seed}", *RECIPE, f"algo.total_frames={frames}", f"eval.runs={eval_runs}",
+               *overrides, f"hydra.run.dir={out}"]
+        checkpoint = out / f"{algo}.pt"
+        if checkpoint.is_file():
+            cmd.append(f"resume={checkpoint}")
+        print("[paper_tables]", " ".join(cmd), flush=True)
+        subprocess.run(cmd, check=True, cwd=ROOT)
+    for rel in RECORD:
+        if (out / rel).is_file():
+            (record / rel).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(out / rel, record / rel)
+    return record
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--run", action="store_true", help="run the studies first")
@@ -110,13 +174,16 @@ def main() -> None:
     args, overrides = parser.parse_known_args()
     specs = [t for t in PAPER_TABLES if t.name in args.tables]
     if args.run:
+        if not args.frames:
+            parser.error("--run needs --frames (the same stage-2 frames for every job)")
+        seeds = [int(x) for x in args.seeds.split(",")]
+        for name, job in planned_jobs(specs, seeds).items():
+            run_job(name, *job, frames=args.frames, eval_runs=args.eval_runs,
+                    overrides=overrides)
         for spec in specs:
-            cmd = [sys.executable, str(ROOT / "experiments" / "study.py"), spec.study, "--run",
-                   "--eval-runs", str(args.eval_runs), "--seeds", args.seeds]
-            if args.frames:
-                cmd += ["--frames", str(args.frames)]
-            print("[paper_tables]", " ".join(cmd), flush=True)
-            subprocess.run(cmd + overrides, check=True, cwd=ROOT)
+            study_table(JOBS, RESULTS / spec.study, spec.study,
+                        select={**study_grid(spec.study),
+                                "seed": [str(x) for x in seeds]})
     lines = ["# The paper's study at CPU scale", "",
              "Written by `experiments/paper_tables.py` from the studies' tables. The paper's "
              "numbers come from full training (Isaac Gym, thousands of robots, the paper "

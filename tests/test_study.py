@@ -13,11 +13,11 @@ from legoh.eval.study import pool, study_table
 
 
 def write_job(folder, algo: str, seed: int, runs: dict[str, list[dict]],
-              keep_runs: bool = False) -> None:
+              keep_runs: bool = False, robot: str = "h1") -> None:
     """A finished job: ``runs`` maps a row (category, overall) to its per-run metrics;
     ``keep_runs`` also writes them as the benchmark does (``benchmark_runs.csv``)."""
     (folder / ".hydra").mkdir(parents=True)
-    cfg = {"seed": seed, "algo": {"name": algo, "total_frames": 1000},
+    cfg = {"seed": seed, "robot": {"name": robot}, "algo": {"name": algo, "total_frames": 1000},
            "eval": {"runs": len(runs["overall"])}}
     (folder / ".hydra" / "config.yaml").write_text(OmegaConf.to_yaml(cfg))
     rows = {row: summarize(values) for row, values in runs.items()}
@@ -120,4 +120,45 @@ def test_paper_tables_set_a_study_beside_the_paper_and_compare_orderings(tmp_pat
     assert sr.endswith("| < | > | no |")  # paper: HLM better; ours: EP-H better
     assert counts["tie"] == 5  # every other metric is 1.0 ± 0.0 for both
     lines, counts = paper_tables.section(spec["table1"], 1000, 3)
-    assert counts == {} and "study.py ablation_temporal --run --frames 1000" in "\n".join(lines)
+    assert counts == {} and "paper_tables.py --run --frames 1000" in "\n".join(lines)
+
+
+def test_paper_jobs_run_once_and_each_study_reads_its_own(tmp_path, monkeypatch) -> None:
+    """The five paper tables compare 8 distinct jobs a seed (11 before: LEGO-H on H1 ran in
+    four studies); one folder of job records serves every study, each table reading only
+    the jobs its sweep names; a recorded job is skipped, and one recorded with other frames
+    is refused."""
+    import sys
+    from pathlib import Path
+
+    from legoh.eval.paper import PAPER_TABLES
+    from legoh.eval.study import read_study_csv, study_grid
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments"))
+    import paper_tables
+
+    jobs = paper_tables.planned_jobs(PAPER_TABLES, [0])
+    assert sorted(jobs) == sorted(
+        ["h1-unified-seed0", "h1-unified_ct-seed0", "h1-unified_nohlm-seed0",
+         "h1-unified_vae-seed0", "h1-ep_h-seed0", "h1-ep_h_hlm-seed0", "h1-rma_b-seed0",
+         "g1-unified-seed0"])
+    records = tmp_path / "paper_jobs"
+    for name, (robot, algo, seed) in jobs.items():
+        sr = 50.0 if robot == "g1" else 10.0 * (1 + sorted(jobs).index(name))
+        write_job(records / name, algo, seed, {"overall": per_run([sr, sr + 2.0])},
+                  robot=robot)
+    study_table(records, tmp_path / "robots", "robots", select=study_grid("robots"))
+    robots = read_study_csv(tmp_path / "robots" / "table.csv")["overall"]
+    assert set(robots) == {"h1", "g1"} and robots["g1"]["SR"][0] == 51.0
+    study_table(records, tmp_path / "t1", "ablation_temporal",
+                select=study_grid("ablation_temporal"))
+    assert set(read_study_csv(tmp_path / "t1" / "table.csv")["overall"]) == {"unified",
+                                                                          "unified_ct"}
+    monkeypatch.setattr(paper_tables, "JOBS", records)
+    monkeypatch.setattr(paper_tables, "RUNS", tmp_path / "runs")  # nothing may run there
+    assert paper_tables.run_job("g1-unified-seed0", "g1", "unified", 0, frames=1000,
+                                eval_runs=2, overrides=[]) == records / "g1-unified-seed0"
+    assert not (tmp_path / "runs").exists()
+    with pytest.raises(SystemExit, match="algo.total_frames=1000"):
+        paper_tables.run_job("g1-unified-seed0", "g1", "unified", 0, frames=5000,
+                             eval_runs=2, overrides=[])

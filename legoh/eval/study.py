@@ -97,8 +97,27 @@ def training_rate(path: str | Path) -> tuple[float, int]:
     return float(np.median(rates)), len(rows)
 
 
-def gather(sweep_dir: str | Path, group_by: str = "algo.name") -> dict[str, list[dict]]:
-    """``{label: [job, ...]}`` for every finished job (one with a benchmark) of a sweep.
+def study_grid(study: str) -> dict[str, list[str]]:
+    """The jobs a study compares, from its sweep (``conf/experiment/<study>.yaml``): ``{config
+    key: values}`` for each swept config group but the seed (``algo`` -> ``algo.name``), and
+    the default for the groups it leaves alone (``robot.name``: h1). A folder of jobs from
+    several studies (``experiments/paper_tables.py``) is filtered by it (:func:`gather`)."""
+    from legoh.config.compose import CONF_DIR, compose_config
+
+    params = OmegaConf.load(Path(CONF_DIR) / "experiment" / f"{study}.yaml").hydra.sweeper.params
+    grid = {f"{group}.name": [v.strip() for v in str(values).split(",")]
+            for group, values in params.items() if group != "seed"}
+    defaults = compose_config()
+    for group in ("robot", "algo"):
+        grid.setdefault(f"{group}.name", [str(OmegaConf.select(defaults, f"{group}.name"))])
+    return grid
+
+
+def gather(sweep_dir: str | Path, group_by: str = "algo.name",
+           select: dict[str, list[str]] | None = None) -> dict[str, list[dict]]:
+    """``{label: [job, ...]}`` for every finished job (one with a benchmark) of a sweep;
+    with ``select`` (:func:`study_grid`), only the jobs whose config has one of the listed
+    values for each key.
 
     A job is ``{"dir", "seed", "runs", "rows", "run_rows", "metrics", "frames",
     "frames_per_s", "iterations"}``: ``rows`` every category row of its benchmark
@@ -113,6 +132,9 @@ def gather(sweep_dir: str | Path, group_by: str = "algo.name") -> dict[str, list
         if not bench.is_file():
             continue
         cfg = OmegaConf.load(cfg_path)
+        if select and any(str(OmegaConf.select(cfg, key)) not in values
+                          for key, values in select.items()):
+            continue
         label = str(OmegaConf.select(cfg, group_by))
         rate, iters = training_rate(job / "train.csv") if (job / "train.csv").is_file() \
             else (float("nan"), 0)
@@ -186,11 +208,13 @@ def read_study_csv(path: str | Path) -> dict[str, dict[str, dict[str, tuple[floa
 
 
 def study_table(sweep_dir: str | Path, out_dir: str | Path, study: str,
-                group_by: str | None = None) -> dict[str, Path]:
+                group_by: str | None = None,
+                select: dict[str, list[str]] | None = None) -> dict[str, Path]:
     """Write ``table.md`` (overall, then one table per trail category), ``table.csv`` (every
-    row), ``table.png`` (overall) and ``summary.json`` for a sweep to ``out_dir``."""
+    row), ``table.png`` (overall) and ``summary.json`` for a sweep (its jobs in ``select``,
+    all by default) to ``out_dir``."""
     group_by = group_by or STUDIES.get(study, "algo.name")
-    groups = gather(sweep_dir, group_by)
+    groups = gather(sweep_dir, group_by, select)
     table = study_rows(groups)
     seeds = sorted({j["seed"] for jobs in groups.values() for j in jobs})
     frames = sorted({j["frames"] for jobs in groups.values() for j in jobs})
