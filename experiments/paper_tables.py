@@ -38,10 +38,11 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "experiments"))
 
+from learn_hike import HIKE  # noqa: E402
+
 from legoh.eval.metrics import HIGHER_IS_BETTER, column_title  # noqa: E402
 from legoh.eval.paper import PAPER_TABLES, PaperTable, ordering  # noqa: E402
 from legoh.eval.study import read_study_csv, study_grid, study_table  # noqa: E402
-from learn_hike import HIKE  # noqa: E402
 
 RESULTS = ROOT / "experiments" / "results"
 JOBS = RESULTS / "paper_jobs"  # each job's record, committed: a later session skips the job
