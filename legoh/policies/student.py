@@ -13,8 +13,8 @@ from torchrl.envs import Compose, EnvBase, InitTracker, TensorDictPrimer, Transf
 
 from legoh import keys
 from legoh.checkpoint import CheckpointError, load_checkpoint
-from legoh.config.algo import NavReward
-from legoh.config.env import CommandConfig, WaypointPass
+from legoh.config.algo import NavReward, StageRandomization
+from legoh.config.env import CommandConfig, Schedule, WaypointPass
 from legoh.envs.hiking_env import make_env
 from legoh.modules.students import Student, StudentDims, make_student
 
@@ -50,8 +50,10 @@ def student_env_overrides(cfg: DictConfig, evaluation: bool = False) -> dict:
     navigation reward (:func:`nav_reward_weights`), the student's depth range, the
     evaluation's speed command (:func:`student_command`); in training, waypoints pass
     once the robot is past them (``env.waypoint_pass=past``: the oracle's labels do not
-    turn a robot back to a waypoint it walked by). Evaluations keep ``env.waypoint_pass``
-    (radius), so a student's TR and TC count as its oracle's do."""
+    turn a robot back to a waypoint it walked by) and, with ``algo.randomization=full``,
+    Table 5's randomisation at full strength from the first step. Evaluations keep
+    ``env.waypoint_pass`` (radius), so a student's TR and TC count as its oracle's do, and
+    the benchmark's own randomisation."""
     depth = OmegaConf.to_object(cfg.env.depth)  # a DepthConfig
     depth.enabled = cfg.algo.student != "rma_b"
     if cfg.algo.depth_far is not None:
@@ -60,6 +62,12 @@ def student_env_overrides(cfg: DictConfig, evaluation: bool = False) -> dict:
     out = {"depth": depth, "rewards": rewards, "command": student_command(cfg)}
     if not evaluation:
         out["waypoint_pass"] = WaypointPass.past
+        mode = StageRandomization(str(getattr(cfg.algo.randomization, "value",
+                                              cfg.algo.randomization)))
+        rand = OmegaConf.to_object(cfg.env.randomization)  # a RandomizationConfig
+        if mode == StageRandomization.full and rand.enabled:
+            rand.schedule, rand.start_after_steps, rand.delay_after_steps = Schedule.steps, 0, 0
+            out["randomization"] = rand
     return out
 
 
