@@ -138,6 +138,18 @@ def test_curriculum_state_round_trips_with_the_gate() -> None:
     other.close()
 
 
+def test_a_resume_with_another_number_of_robots_is_refused_naming_the_key() -> None:
+    """Failed before with torch's "expanded size ... must match" (a resumed campaign run
+    with --envs changed), which names neither the key nor the value to use."""
+    env = make_env(compose_config("trail=flat", *SMALL), num_envs=3)
+    state = env.curriculum_state()
+    other = make_env(compose_config("trail=flat", *SMALL), num_envs=4)
+    with pytest.raises(ValueError, match="algo.num_envs=3"):
+        other.load_curriculum_state(state)
+    env.close()
+    other.close()
+
+
 def _actor_on(cfg, path):
     env = make_env(cfg, num_envs=6)
     dims, actor, critic, adaptation = build_oracle(env, cfg)

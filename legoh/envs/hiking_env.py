@@ -274,7 +274,14 @@ class HikingEnv(EnvBase):
 
     def load_curriculum_state(self, state: dict) -> None:
         """Set the schedule back to :meth:`curriculum_state`'s ``state`` (a checkpoint
-        from before the gate has no ``randomization``: the gate starts closed)."""
+        from before the gate has no ``randomization``: the gate starts closed). A state
+        of another number of robots is refused: a run's frame count is iterations x robots
+        x steps, so a resumed run keeps its ``algo.num_envs``."""
+        if len(state["level"]) != self.num_envs:
+            raise ValueError(f"the checkpoint's curriculum holds {len(state['level'])} robots, "
+                             f"this env {self.num_envs}: resume with algo.num_envs="
+                             f"{len(state['level'])} (a run keeps its number of robots; "
+                             "init=<checkpoint> starts a new run from its weights)")
         self.level[:] = torch.as_tensor(state["level"], device=self.device)
         self.global_steps = int(state["global_steps"])
         if "randomization" in state:
