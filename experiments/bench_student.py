@@ -1,7 +1,8 @@
 """The stage-2 student loop beside the oracle loop: frames/s and where the student's time goes.
 
     python experiments/bench_student.py [--sizes 64 256] [--iterations 4]
-        [--variants "" "algo.update_precision=bfloat16 collector.overlap=true"] [--note "..."]
+        [--variants "" "algo.update_precision=bfloat16 algo.distill_epochs=1 algo.epochs=3"]
+        [--note "..."]
 
 Per batch size N, in one run (these machines are noisy, so compare within a run):
   bare env:      HikingEnv.step_and_maybe_reset with random actions, depth off (the physics

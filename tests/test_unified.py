@@ -201,6 +201,15 @@ def test_checkpoint_of_another_student_is_refused(artefacts, tmp_path):
         train_student(tiny("rma_h", artefacts), tmp_path / "b", resume=str(run.checkpoint))
 
 
+def test_the_overlapped_collector_is_refused_for_a_student(artefacts, tmp_path):
+    """With collector.overlap the H1 student's PPO diverged (grad norm 9e7 at iteration 15,
+    NaN actions at 28): its acted actions lie far off the policy after the imitation step.
+    Failed before: it trained, and crashed 1.5 minutes in."""
+    with pytest.raises(ValueError, match="collector.overlap=true is refused for stage 2"):
+        train_student(tiny("unified", artefacts, "collector.overlap=true"), tmp_path / "a")
+    assert not (tmp_path / "a").exists()  # refused before anything is written
+
+
 def test_student_benchmark_and_study_table(artefacts, tmp_path):
     """Two jobs of a sweep folder, benchmarked through the student's env, gathered."""
     sweep = tmp_path / "multirun"

@@ -217,6 +217,13 @@ def train_student(cfg: DictConfig, out_dir: Path, resume: str | None = None,
     should score); returning True stops training with a checkpoint. Signals and
     ``resume_hint`` as for :func:`legoh.train.oracle.train_oracle`.
     """
+    if cfg.collector.overlap:
+        raise ValueError(
+            "collector.overlap=true is refused for stage 2 (valid: false). Between acting and "
+            "its update a student moves by a PPO and an imitation step, so with the overlap "
+            "its acted actions lie many stds (0.2, fixed) off the policy PPO starts from; "
+            "the H1 student's update diverged (grad norm 9e7 and KL 16 at iteration 15, NaN "
+            "actions at 28; docs/unified.md, 'Speed')")
     teacher_path = ensure_oracle(cfg)  # before the session: it may train an oracle of its own
     with training_session(cfg, out_dir) as stop:
         student = build_student(cfg)
