@@ -30,7 +30,7 @@ from hydra import compose, initialize_config_dir  # noqa: E402
 from omegaconf import OmegaConf  # noqa: E402
 
 from legoh.config import register_configs  # noqa: E402
-from legoh.config.env import Schedule  # noqa: E402
+from legoh.config.env import from_first_step  # noqa: E402
 from legoh.envs.hiking_env import make_env  # noqa: E402
 from legoh.eval.benchmark import rollout_level  # noqa: E402
 from legoh.threads import torch_threads  # noqa: E402
@@ -55,9 +55,7 @@ def walk_env_settings(cfg, trail: str, randomize: bool) -> tuple:
     with initialize_config_dir(str(ROOT / "conf"), version_base="1.3"):
         base = compose("config", overrides=[f"trail={trail}"])
     run = OmegaConf.merge(cfg, {"trail": base.trail, "seed": 1000 + int(cfg.seed)})
-    rand = OmegaConf.to_object(run.env.randomization)
-    rand.enabled, rand.start_after_steps, rand.delay_after_steps = randomize, 0, 0
-    rand.schedule = Schedule.steps  # full strength from the first step
+    rand = from_first_step(OmegaConf.to_object(run.env.randomization), enabled=randomize)
     cur = OmegaConf.to_object(run.env.curriculum)
     cur.enabled = False
     return run, {"episode_length_s": SECONDS, "randomization": rand, "curriculum": cur}

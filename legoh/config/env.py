@@ -1,6 +1,6 @@
 """HikingEnv config schema (the ``env`` node of ``conf/config.yaml``)."""
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import Enum, StrEnum
 
 
@@ -186,6 +186,15 @@ class RandomizationConfig:
     # batch, legged_gym's common_step_counter). Extreme Parkour: delays after 24 x 8000.
     start_after_steps: int = 24_000  # 1000 iterations of 24 steps
     delay_after_steps: int = 36_000  # 1500 iterations of 24 steps
+
+
+def from_first_step(rand: RandomizationConfig, enabled: bool | None = None
+                    ) -> RandomizationConfig:
+    """``rand`` at full strength from the first step (physics draws, pushes and action
+    delays; the step-count schedule switched on at step 0): for a trained policy (the
+    benchmark, walk tests) and for stage 2 (its teacher trained under it)."""
+    return replace(rand, enabled=rand.enabled if enabled is None else enabled,
+                   schedule=Schedule.steps, start_after_steps=0, delay_after_steps=0)
 
 
 @dataclass

@@ -34,7 +34,7 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 from tqdm import tqdm
 
 from legoh import keys
-from legoh.config.env import RandomizationConfig, Schedule
+from legoh.config.env import RandomizationConfig, from_first_step
 from legoh.eval.metrics import (
     SIGNALS,
     TC_RADIUS,
@@ -92,10 +92,8 @@ def eval_randomization(cfg: DictConfig) -> RandomizationConfig:
     """The env's Table 5 randomisation during an evaluation: ``eval.randomization`` turns
     it on or off; the policy under test is trained, so its schedule is open from the
     first step (physics draws, pushes and action delays)."""
-    rand = OmegaConf.to_object(cfg.env.randomization)
-    return dataclasses.replace(rand, enabled=bool(cfg.eval.randomization),
-                               schedule=Schedule.steps, start_after_steps=0,
-                               delay_after_steps=0)
+    return from_first_step(OmegaConf.to_object(cfg.env.randomization),
+                           enabled=bool(cfg.eval.randomization))
 
 
 def eval_env_settings(cfg: DictConfig, run: int) -> tuple[DictConfig, int, dict]:

@@ -14,7 +14,7 @@ from torchrl.envs import Compose, EnvBase, InitTracker, TensorDictPrimer, Transf
 from legoh import keys
 from legoh.checkpoint import CheckpointError, load_checkpoint
 from legoh.config.algo import NavReward, StageRandomization
-from legoh.config.env import CommandConfig, Schedule, WaypointPass
+from legoh.config.env import CommandConfig, WaypointPass, from_first_step
 from legoh.envs.hiking_env import make_env
 from legoh.modules.students import Student, StudentDims, make_student
 
@@ -66,8 +66,7 @@ def student_env_overrides(cfg: DictConfig, evaluation: bool = False) -> dict:
                                               cfg.algo.randomization)))
         rand = OmegaConf.to_object(cfg.env.randomization)  # a RandomizationConfig
         if mode == StageRandomization.full and rand.enabled:
-            rand.schedule, rand.start_after_steps, rand.delay_after_steps = Schedule.steps, 0, 0
-            out["randomization"] = rand
+            out["randomization"] = from_first_step(rand)
     return out
 
 
