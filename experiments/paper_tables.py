@@ -2,6 +2,7 @@
 
     python experiments/paper_tables.py                     # write paper_tables.md from the studies
     python experiments/paper_tables.py --run --frames 100000 --eval-runs 3 [--seeds 0]
+                                       [--parallel 2]
 
 Each paper table is answered by one study of ours (``legoh.eval.paper.PAPER_TABLES``):
 Table 1 by ``ablation_temporal`` (GRU vs causal transformer), Table 2 by ``ablation_prior``
@@ -131,10 +132,11 @@ def planned_jobs(specs, seeds: list[int]) -> dict[str, tuple[str, str, int]]:
 
 
 def run_job(name: str, robot: str, algo: str, seed: int, frames: int, eval_runs: int,
-            overrides: list[str]) -> Path:
+            overrides: list[str], log: Path | None = None) -> Path:
     """Train and benchmark one job (``run.py`` in ``multirun/paper/<job>``, resumed from its
     checkpoint if a killed run left one), then copy its record to ``paper_jobs/<job>``. A
-    job recorded already is skipped, unless its frames or evaluation runs differ: refused."""
+    job recorded already is skipped, unless its frames or evaluation runs differ: refused.
+    ``log``: the job's console goes to that file (parallel jobs), else to this one."""
     record = JOBS / name
     if (record / "benchmark.csv").is_file():
         from omegaconf import OmegaConf
@@ -156,12 +158,41 @@ def run_job(name: str, robot: str, algo: str, seed: int, frames: int, eval_runs:
         if checkpoint.is_file():
             cmd.append(f"resume={checkpoint}")
         print("[paper_tables]", " ".join(cmd), flush=True)
-        subprocess.run(cmd, check=True, cwd=ROOT)
+        if log is None:
+            subprocess.run(cmd, check=True, cwd=ROOT)
+        else:
+            log.parent.mkdir(parents=True, exist_ok=True)
+            with open(log, "a", encoding="utf-8") as stream:
+                subprocess.run(cmd, check=True, cwd=ROOT, stdout=stream,
+                               stderr=subprocess.STDOUT)
+            print(f"[paper_tables] {name}: done ({log})", flush=True)
     for rel in RECORD:
         if (out / rel).is_file():
             (record / rel).parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(out / rel, record / rel)
     return record
+
+
+def run_jobs(jobs: dict[str, tuple[str, str, int]], frames: int, eval_runs: int,
+             overrides: list[str], parallel: int = 1) -> None:
+    """Every job of ``jobs``, ``parallel`` at a time (each console in
+    ``multirun/paper/<job>.log`` when more than one): two training processes on these
+    2 cores made ~1.6 x the frames of one (docs/oracle.md), so a sweep of 8 jobs finishes
+    sooner two at a time. A failed job stops the sweep once the running ones end."""
+    if parallel < 1:
+        raise SystemExit(f"[paper_tables] --parallel {parallel}: valid is >= 1")
+    if parallel == 1:
+        for name, job in jobs.items():
+            run_job(name, *job, frames=frames, eval_runs=eval_runs, overrides=overrides)
+        return
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(parallel) as pool:  # threads: each only waits on its process
+        futures = [pool.submit(run_job, name, *job, frames=frames, eval_runs=eval_runs,
+                               overrides=overrides, log=RUNS / f"{name}.log")
+                   for name, job in jobs.items()]
+        for future in futures:
+            future.result()  # a job's failure raises here, after the pool drained
 
 
 def main() -> None:
@@ -170,6 +201,8 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=None, help="stage-2 frames per job")
     parser.add_argument("--eval-runs", type=int, default=3)
     parser.add_argument("--seeds", default="0", help="training seeds of every study")
+    parser.add_argument("--parallel", type=int, default=1,
+                        help="jobs at once (2 on a 2-core machine: ~1.6x the frames)")
     parser.add_argument("--tables", nargs="+", default=[t.name for t in PAPER_TABLES],
                         choices=[t.name for t in PAPER_TABLES])
     args, overrides = parser.parse_known_args()
@@ -178,9 +211,8 @@ def main() -> None:
         if not args.frames:
             parser.error("--run needs --frames (the same stage-2 frames for every job)")
         seeds = [int(x) for x in args.seeds.split(",")]
-        for name, job in planned_jobs(specs, seeds).items():
-            run_job(name, *job, frames=args.frames, eval_runs=args.eval_runs,
-                    overrides=overrides)
+        run_jobs(planned_jobs(specs, seeds), args.frames, args.eval_runs, overrides,
+                 args.parallel)
         for spec in specs:
             study_table(JOBS, RESULTS / spec.study, spec.study,
                         select={**study_grid(spec.study),

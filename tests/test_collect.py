@@ -5,6 +5,7 @@ Each kind must yield (envs, time) batches, act with the learner's current weight
 2 CPUs (loopback only) once for the module.
 """
 
+import copy
 import functools
 from pathlib import Path
 
@@ -138,16 +139,17 @@ def test_worker_curriculum_reaches_the_checkpoint_and_comes_back_on_resume(
     assert load_checkpoint(second.checkpoint)["curriculum"]["global_steps"] == 2 * STEPS
 
 
-def test_overlapped_collection_trains_and_acts_with_synced_weights(tmp_path: Path) -> None:
-    """collector.overlap=true: one worker collects while the learner updates; its batches
-    have the (envs, time) shape and, after a sync, come from the learner's new weights (one
-    batch of lag: the batch already in flight was acted with the previous ones)."""
+def test_overlapped_collection_trains_and_acts_with_one_update_of_lag(tmp_path: Path) -> None:
+    """collector.overlap=true: one worker collects while the learner updates. Its batches
+    have the (envs, time) shape; the batch in flight at a sync was acted with the weights
+    before it, every later one with the synced weights, never a mix."""
     cfg = compose_config(*TINY, "collector.overlap=true", "algo.total_frames=96")
     run = train_oracle(cfg, tmp_path)
     assert run.iterations == 3 and run.checkpoint.exists()
     env = make_env(cfg, num_envs=NUM_ENVS)
     torch.manual_seed(0)
     _, actor, _, _ = build_oracle(env, cfg)
+    before = copy.deepcopy(actor)
     collector = make_collector(cfg, functools.partial(make_env, cfg), actor,
                                NUM_ENVS * STEPS, NUM_ENVS * STEPS * 4, env=env)
     batches = []
@@ -162,10 +164,25 @@ def test_overlapped_collection_trains_and_acts_with_synced_weights(tmp_path: Pat
             break
     collector.shutdown()
     assert batches[0].shape == (NUM_ENVS, STEPS)
-    last = batches[-1]
-    with torch.no_grad():
-        fresh = actor(last.select(*actor.in_keys).clone())
-    torch.testing.assert_close(last[LOC], fresh[LOC])
+    for k, acting in ((0, before), (1, before), (2, actor), (3, actor)):
+        with torch.no_grad():
+            fresh = acting(batches[k].select(*acting.in_keys).clone())
+        torch.testing.assert_close(batches[k][LOC], fresh[LOC], msg=f"batch {k}")
+
+
+def test_overlapped_training_repeats_with_its_seed(tmp_path: Path) -> None:
+    """Two overlapped runs of one seed log the same losses and rewards (torchrl's
+    MultiAsyncCollector applied weights whenever they arrived: two such runs diverged)."""
+    cfg = compose_config(*TINY, "collector.overlap=true", "algo.total_frames=192")
+    rows = []
+    for name in ("a", "b"):
+        run = train_oracle(cfg, tmp_path / name)
+        lines = run.csv.read_text().strip().splitlines()
+        header = lines[0].split(",")
+        keep = [i for i, h in enumerate(header) if h.startswith(("loss", "reward"))]
+        rows.append([[line.split(",")[i] for i in keep] for line in lines[1:]])
+    assert len(rows[0]) == 6 and keep
+    assert rows[0] == rows[1]
 
 
 def test_overlap_takes_one_worker() -> None:

@@ -162,3 +162,28 @@ def test_paper_jobs_run_once_and_each_study_reads_its_own(tmp_path, monkeypatch)
     with pytest.raises(SystemExit, match="algo.total_frames=1000"):
         paper_tables.run_job("g1-unified-seed0", "g1", "unified", 0, frames=5000,
                              eval_runs=2, overrides=[])
+
+
+def test_paper_tables_parallel_jobs_skip_records_and_raise_a_refused_one(tmp_path,
+                                                                         monkeypatch):
+    """``--parallel 2`` goes through the same per-job rule: recorded jobs are skipped (nothing
+    runs), a record of other frames stops the sweep with the job's error, and
+    ``--parallel 0`` is refused naming the value."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments"))
+    import paper_tables
+
+    jobs = {"h1-unified-seed0": ("h1", "unified", 0), "g1-unified-seed0": ("g1", "unified", 0)}
+    records = tmp_path / "paper_jobs"
+    for name, (robot, algo, seed) in jobs.items():
+        write_job(records / name, algo, seed, {"overall": per_run([10.0, 12.0])}, robot=robot)
+    monkeypatch.setattr(paper_tables, "JOBS", records)
+    monkeypatch.setattr(paper_tables, "RUNS", tmp_path / "runs")  # nothing may run there
+    paper_tables.run_jobs(jobs, frames=1000, eval_runs=2, overrides=[], parallel=2)
+    assert not (tmp_path / "runs").exists()
+    with pytest.raises(SystemExit, match="algo.total_frames=1000"):
+        paper_tables.run_jobs(jobs, frames=5000, eval_runs=2, overrides=[], parallel=2)
+    with pytest.raises(SystemExit, match="--parallel 0: valid is >= 1"):
+        paper_tables.run_jobs(jobs, frames=1000, eval_runs=2, overrides=[], parallel=0)

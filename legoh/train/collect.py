@@ -14,11 +14,12 @@ from collections.abc import Callable
 
 import torch
 from omegaconf import DictConfig
-from torchrl.collectors import BaseCollector, Collector, MultiAsyncCollector, MultiSyncCollector
+from torchrl.collectors import BaseCollector, Collector, MultiSyncCollector
 from torchrl.envs import EnvBase
 
 from legoh import keys
 from legoh.envs.physics import physics_device
+from legoh.train.pipeline import PipelinedCollector
 
 GIB = 1024**3
 
@@ -67,7 +68,7 @@ def envs_per_worker(cfg: DictConfig) -> int:
 
 def make_collector(cfg: DictConfig, make_env_fn: Callable[[int], EnvBase], policy,
                    frames_per_batch: int, total_frames: int, env: EnvBase | None = None
-                   ) -> BaseCollector:
+                   ) -> BaseCollector | PipelinedCollector:
     """torchrl collector per ``cfg.collector``.
 
     ``make_env_fn(num_envs)`` builds one env copy; it must pickle (a functools.partial of a
@@ -97,7 +98,7 @@ def make_collector(cfg: DictConfig, make_env_fn: Callable[[int], EnvBase], polic
     raise ValueError(f"unknown collector {kind!r}; choose collector=sync or collector=ray")
 
 
-def sync_weights(collector: BaseCollector) -> None:
+def sync_weights(collector: BaseCollector | PipelinedCollector) -> None:
     """Send the learner's current policy weights to every worker (after each update).
 
     In-process the collector acts with the learner's own modules, so there is nothing to
@@ -114,18 +115,15 @@ def _make_local(cfg, make_env_fn, policy, frames_per_batch, total_frames, env, p
                "policy_device": worker_policy_device(cfg)}
     if cfg.collector.overlap:
         # one worker process collects batch k+1 with the weights of update k-1 while the
-        # learner runs update k (torchrl's MultiAsyncCollector): the envs and the update
-        # share the cores instead of taking turns (bench_train.md: loop / bare env).
+        # learner runs update k: the envs and the update share the cores instead of taking
+        # turns (bench_train.md: loop / bare env); a fixed lag, so a seed's run repeats
         if cfg.collector.workers != 1:
             raise ValueError(f"collector.overlap=true takes collector.workers=1 (got "
                              f"{cfg.collector.workers}): one process overlaps its collection "
                              f"with the update")
-        collector = MultiAsyncCollector(
-            _worker_factories(make_env_fn, per_worker, 1, env), policy,
-            frames_per_batch=frames_per_batch, total_frames=total_frames,
-            auto_register_policy_transforms=False, **devices)
-        collector.set_seed(cfg.seed)
-        return collector
+        return PipelinedCollector(_worker_factories(make_env_fn, per_worker, 1, env)[0],
+                                  policy, frames_per_batch, total_frames, int(cfg.seed),
+                                  **devices)
     if cfg.collector.workers == 1:
         if env is None:
             env = make_env_fn(per_worker)
@@ -172,7 +170,7 @@ def _make_ray(cfg, make_env_fn, policy, frames_per_batch, total_frames, per_work
     return collector
 
 
-def mirror_curriculum(collector: BaseCollector, env: EnvBase, batch) -> None:
+def mirror_curriculum(collector: BaseCollector | PipelinedCollector, env: EnvBase, batch) -> None:
     """With workers, copy their curriculum into the learner's (never stepped) ``env``: each
     env's level at the batch's last step and the step counter (+ the batch's T steps).
 
