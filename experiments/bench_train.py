@@ -9,14 +9,13 @@ Per batch size N, in one run (these machines are noisy, so compare within a run)
               collected batch, in float32 and with ``algo.update_precision=bfloat16``
               (autocast);
   loop:       the real training loop (``train_oracle``), frames/s of its iterations after
-              the first, in three settings:
-                default: the default config (update_precision=auto: bfloat16 on AMX /
-                         AVX512-BF16 CPUs), collection and update take turns in one process;
-                fast:    ``algo.update_precision=bfloat16 collector.overlap=true`` (autocast
-                         update; the next batch is collected in a worker process while the
-                         learner updates);
-                lean:    fast with ``algo.critic_hidden=[256,128,64] algo.epochs=3`` (a
-                         cheaper update; its learning is measured by learn_walk).
+              the first, in two settings:
+                default: the default config (the lean update: 3 epochs, a 256-128-64 critic,
+                         update_precision=auto: bfloat16 on AMX / AVX512-BF16 CPUs),
+                         collection and update take turns in one process;
+                overlap: the default with ``collector.overlap=true``: the next batch is
+                         collected in a worker process while the learner updates (the
+                         lean loop of learn_walk; before 2026-12-03 "lean" here).
 Then update variants at the largest N (epochs x minibatches, precision): what a cheaper
 update would buy. Writes experiments/results/bench_train.{md,json}.
 """
@@ -43,10 +42,10 @@ from legoh.eval.curves import read_columns  # noqa: E402
 from legoh.train.oracle import OraclePPO, train_oracle  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-BF16, CRITIC256, EPOCHS3 = ("algo.update_precision=bfloat16", "algo.critic_hidden=[256,128,64]",
-                            "algo.epochs=3")
-LOOPS = {"default": [], "fast": [BF16, "collector.overlap=true"],
-         "lean": [BF16, "collector.overlap=true", CRITIC256, EPOCHS3]}
+BF16, F32 = "algo.update_precision=bfloat16", "algo.update_precision=float32"
+CRITIC256, CRITIC512 = "algo.critic_hidden=[256,128,64]", "algo.critic_hidden=[512,256,128]"
+EPOCHS3, EPOCHS5 = "algo.epochs=3", "algo.epochs=5"
+LOOPS = {"default": [], "overlap": ["collector.overlap=true"]}
 OUT = ROOT / "experiments" / "results"
 
 
@@ -130,10 +129,12 @@ def main() -> None:  # noqa: PLR0915 - one measurement table after another
 
     n = args.sizes[-1]
     variants = {} if args.no_variants else {
-        "5 x 4, float32 (default)": [], "5 x 4, bfloat16": [BF16],
-        "5 x 2, bfloat16": [BF16, "algo.minibatches=2"], "3 x 4, bfloat16": [BF16, EPOCHS3],
-        "5 x 4, bfloat16, critic 256-128-64": [BF16, CRITIC256],
-        "3 x 4, bfloat16, critic 256-128-64 (lean)": [BF16, CRITIC256, EPOCHS3]}
+        "5 x 4, float32, critic 512-256-128 (the paper's)": [F32, EPOCHS5, CRITIC512],
+        "5 x 4, bfloat16": [BF16, EPOCHS5, CRITIC512],
+        "5 x 2, bfloat16": [BF16, EPOCHS5, CRITIC512, "algo.minibatches=2"],
+        "3 x 4, bfloat16": [BF16, EPOCHS3, CRITIC512],
+        "5 x 4, bfloat16, critic 256-128-64": [BF16, EPOCHS5, CRITIC256],
+        "3 x 4, bfloat16, critic 256-128-64 (lean, the default)": [BF16, CRITIC256, EPOCHS3]}
     var_rows = []
     for name, extra in variants.items():
         cfg = config(n, *extra)
@@ -151,11 +152,11 @@ def main() -> None:  # noqa: PLR0915 - one measurement table after another
          "torch_threads": 1, "cpus": os.cpu_count(), "note": args.note}, indent=2))
     lines = ["# Oracle training loop vs its env (frames/s, one run, 1 torch thread, "
              f"{os.cpu_count()} CPUs)", "", *([args.note, ""] if args.note else []),
-             f"fast = `{' '.join(LOOPS['fast'])}`; lean = fast + "
-             f"`{' '.join(LOOPS['lean'][len(LOOPS['fast']):])}`.", "",
-             "| N | bare env | collection | update | update bf16 | default loop | / bare | "
-             "fast loop | / bare | lean loop | / bare | update share |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "default: the default config (the lean update, in-process collection); overlap = "
+             f"default + `{' '.join(LOOPS['overlap'])}`.", "",
+             "| N | bare env | collection | update | update bf16 | "
+             + " | ".join(f"{name} loop | / bare" for name in LOOPS) + " | update share |",
+             "|---|---|---|---|---|" + "---|---|" * len(LOOPS) + "---|"]
     lines += [f"| {r['N']} | {r['bare']:.0f} | {r['collection']:.0f} | {r['update']:.0f} | "
               f"{r['update_bf16']:.0f} | "
               + " | ".join(f"{r[f'loop_{name}']:.0f} | {r[f'{name}_over_bare']:.2f}"
