@@ -30,6 +30,7 @@ match where both separate the methods. Writes experiments/results/paper_tables.m
 from __future__ import annotations
 
 import argparse
+import json
 import shutil
 import subprocess
 import sys
@@ -87,6 +88,15 @@ def compare(spec: PaperTable, numbers: dict, ours: dict) -> tuple[list[str], dic
     return lines, counts
 
 
+def study_frames(folder: Path) -> set[int]:
+    """Stage-2 frames of the jobs behind a study's table (its ``summary.json``)."""
+    path = folder / "summary.json"
+    if not path.is_file():
+        return set()
+    groups = json.loads(path.read_text(encoding="utf-8")).get("groups", {})
+    return {int(job["frames"]) for jobs in groups.values() for job in jobs if "frames" in job}
+
+
 def section(spec: PaperTable, frames: int | None, eval_runs: int) -> tuple[list[str], dict]:
     path = RESULTS / spec.study / "table.csv"
     run = (f"`python experiments/paper_tables.py --run --frames {frames or 'F'} "
@@ -98,6 +108,11 @@ def section(spec: PaperTable, frames: int | None, eval_runs: int) -> tuple[list[
     lines += [f"Ours: `experiments/results/{spec.study}/` ({run}; its `table.md` says the "
               "frames, seeds and evaluation runs). Orderings: `>` the first column is "
               "better, `<` the second, `=` within one std.", ""]
+    had = study_frames(RESULTS / spec.study)
+    if frames and had and had != {frames}:
+        lines += [f"**Not this budget**: the table's jobs trained {', '.join(map(str, had))} "
+                  f"frames each, not {frames}; `--run` replaces it once its jobs are "
+                  "recorded. Older tables predate the walking teacher: not evidence.", ""]
     total: dict[str, int] = {}
     groups = spec.numbers.items() if spec.per_category else [("overall", spec.numbers)]
     for category, numbers in groups:

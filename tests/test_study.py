@@ -119,6 +119,10 @@ def test_paper_tables_set_a_study_beside_the_paper_and_compare_orderings(tmp_pat
     sr = next(line for line in lines if line.startswith("| SR"))
     assert sr.endswith("| < | > | no |")  # paper: HLM better; ours: EP-H better
     assert counts["tie"] == 5  # every other metric is 1.0 ± 0.0 for both
+    assert "Not this budget" not in "\n".join(lines)
+    lines, _ = paper_tables.section(spec["table3"], 5000, 3)  # a table of other frames
+    assert "**Not this budget**: the table's jobs trained 1000 frames each, not 5000" in (
+        "\n".join(lines))
     lines, counts = paper_tables.section(spec["table1"], 1000, 3)
     assert counts == {} and "paper_tables.py --run --frames 1000" in "\n".join(lines)
 
