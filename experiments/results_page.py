@@ -202,11 +202,27 @@ def hill_section() -> list[str]:
     return lines
 
 
+def study_section() -> list[str]:
+    """The paper's study at CPU scale: ``paper_tables.md``'s tables, its intro left out."""
+    path = RESULTS / "paper_tables.md"
+    if not path.exists():
+        return []
+    body = path.read_text(encoding="utf-8").split("\n## ", 1)
+    if len(body) < 2:
+        return []
+    tables = ("## " + body[1]).replace("\n## ", "\n### ").replace("## ", "### ", 1)
+    return ["## The paper's study at CPU scale", "",
+            f"From [`{rel(path)}`]({rel(path)}) (`python experiments/paper_tables.py`): our "
+            "jobs beside the appendix's tables; compare the orderings, not the values.", "",
+            tables, ""]
+
+
 def write_page() -> Path:
     lines = ["# Results", "",
              "Written by `python experiments/results_page.py` from the committed results; "
              "do not edit by hand.", ""]
-    for section in (shipped_section, hill_section, campaigns_section, films_section):
+    for section in (shipped_section, hill_section, study_section, campaigns_section,
+                    films_section):
         lines += section()
     PAGE.write_text("\n".join(lines))
     return PAGE
