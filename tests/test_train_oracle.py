@@ -6,6 +6,7 @@ from pathlib import Path
 
 import pytest
 import torch
+from tensordict import TensorDictBase
 
 from legoh.checkpoint import CheckpointError, load_checkpoint
 from legoh.envs.hiking_env import make_env
@@ -247,16 +248,49 @@ def test_update_precision_names_its_choices() -> None:
 def test_a_lagged_batch_is_clipped_against_the_current_policy() -> None:
     # collector.overlap acts with the weights of an earlier update. Against those, the KL
     # already counts the previous step (the adaptive lr then shrinks); lagged=True makes the
-    # weights the update starts from the reference: KL 0 and no clipping at lr 0.
-    cfg, _, loss, data = _fixed_batch()
+    # weights the update starts from the proximal policy: KL 0 and no clipping at lr 0.
+    cfg, actor, loss, data = _fixed_batch()
+    lagged, _ = make_ppo(actor, loss.critic_network, cfg.algo, lagged=True)
     algo = cfg.algo.copy()
     algo.desired_kl, algo.epochs, algo.minibatches = 0.0, 1, 1
     ppo_update(loss, torch.optim.Adam(loss.parameters(), lr=1e-2), data, algo, exact_kl=True)
     still = torch.optim.Adam(loss.parameters(), lr=0.0)
     stale = ppo_update(loss, still, data.clone(), algo, exact_kl=True)
-    fresh = ppo_update(loss, still, data.clone(), algo, exact_kl=True, lagged=True)
+    fresh = ppo_update(lagged, still, data.clone(), algo, exact_kl=True, lagged=True)
     assert stale["kl_exact"] > 1e-4
     assert fresh["kl_exact"] == pytest.approx(0.0, abs=1e-7)
+    with pytest.raises(ValueError, match="lagged=True"):
+        ppo_update(loss, still, data.clone(), algo, lagged=True)
+
+
+def test_rows_acted_far_off_the_current_policy_barely_move_a_lagged_update() -> None:
+    """A student's batch under collector.overlap was acted by a policy whose mean lay many
+    stds from the one its update starts from; re-evaluated as if the current policy had
+    acted, those rows' log-probability gradients ((a - mu) / sigma^2) ran the update away
+    (grad norm 4e5-9e7, docs/unified.md). Decoupled PPO weighs them by pi / pi_behav ~ 0.
+    Failed before: re-evaluated under the current policy, these rows gave 4.5x the gradient
+    norm of rows the current policy acted (6.3 vs 1.4); now ~0."""
+    cfg, actor, loss, data = _fixed_batch()
+    algo = cfg.algo.copy()
+    algo.desired_kl, algo.epochs, algo.minibatches, algo.max_grad_norm = 0.0, 1, 1, 1e12
+    algo.value_coef = algo.entropy_coef = 0.0  # the surrogate's gradient alone
+    loss, _ = make_ppo(actor, loss.critic_network, algo)
+    lagged, _ = make_ppo(actor, loss.critic_network, algo, lagged=True)
+    with torch.no_grad():
+        dist = actor.get_dist(data.select(*actor.in_keys).clone()).base_dist
+    torch.manual_seed(0)
+
+    def acted_by(policy: torch.distributions.Normal) -> TensorDictBase:
+        batch, action = data.clone(), policy.sample()
+        batch.set("action", action)
+        batch.set("sample_log_prob", policy.log_prob(action).sum(-1))
+        return batch
+
+    still = torch.optim.Adam(loss.parameters(), lr=0.0)
+    on_policy = ppo_update(loss, still, acted_by(dist), algo)["grad_norm"]
+    far = torch.distributions.Normal(dist.loc + 5 * dist.scale, dist.scale)  # 5 stds off
+    lag = ppo_update(lagged, still, acted_by(far), algo, lagged=True)["grad_norm"]
+    assert lag < 0.1 * on_policy
 
 
 def test_update_precision_auto_follows_the_cpu(monkeypatch) -> None:

@@ -25,6 +25,9 @@ from legoh.config.algo import OracleConfig
 from legoh.modules.actor_critic import LOC, LOG_PROB, SCALE, STATE_VALUE
 
 LR_BOUNDS = (1e-5, 1e-2)  # rsl_rl's clamp for the adaptive learning rate
+# cap of pi_theta / pi_behav on a lagged batch (use_current_policy_as_proximal): a row acted
+# in the behaviour policy's tail but near the current mean would otherwise weigh ~unbounded
+MAX_IMPORTANCE_RATIO = 2.0
 
 
 class KeepDistPPOLoss(ClipPPOLoss):
@@ -73,13 +76,17 @@ class OnePassGAE:
         return self.gae(batch)
 
 
-def make_ppo(actor, critic, cfg: OracleConfig) -> tuple[ClipPPOLoss, OnePassGAE]:
+def make_ppo(actor, critic, cfg: OracleConfig, lagged: bool = False
+             ) -> tuple[ClipPPOLoss, OnePassGAE]:
     """ClipPPOLoss (advantages normalised per minibatch, values clipped when
-    ``cfg.clip_value``) and GAE over the critic."""
+    ``cfg.clip_value``) and GAE over the critic. ``lagged`` (``collector.overlap``: batches
+    acted by the weights of an earlier update): decoupled PPO, see
+    :func:`use_current_policy_as_proximal`."""
     loss = KeepDistPPOLoss(actor, critic, clip_epsilon=cfg.clip_epsilon,
                            entropy_coeff=cfg.entropy_coef, critic_coeff=cfg.value_coef,
                            loss_critic_type="l2", clip_value=bool(cfg.clip_value),
-                           normalize_advantage=True)
+                           normalize_advantage=True, delay_actor=lagged,
+                           max_importance_ratio=MAX_IMPORTANCE_RATIO if lagged else None)
     loss.set_keys(sample_log_prob="sample_log_prob")
     return loss, OnePassGAE(critic, cfg.gamma, cfg.gae_lambda)
 
@@ -113,20 +120,27 @@ def gaussian_kl(loc0: torch.Tensor, scale0: torch.Tensor, loc1: torch.Tensor,
     return kl.sum(-1).mean()
 
 
-def use_current_policy_as_reference(loss: ClipPPOLoss, data: TensorDictBase) -> None:
-    """Re-evaluate the batch's actions under the weights this update starts from.
+def use_current_policy_as_proximal(loss: ClipPPOLoss, data: TensorDictBase) -> None:
+    """Decoupled PPO (Hilton et al., 2021, torchrl's ``delay_actor``) for a lagged batch.
 
-    With ``collector.overlap`` a batch is acted with the weights of the update before the
-    last one. Clipping and the KL against that acting policy count the previous update's
-    step too: the adaptive learning rate then halves each step, and the 3.2M-frame run that
-    did so learned slower per frame than the in-process loop (docs/oracle.md). So the
-    current policy becomes the reference, as decoupled PPO's proximal policy (Hilton et al.,
-    2021); the behaviour-to-proximal weight it would add, within a few % at a lag of one
-    update, is left out.
+    With ``collector.overlap`` a batch is acted by the weights of the update before the
+    last one (the behaviour policy). The weights this update starts from become the
+    proximal policy: clipping, the KL and the adaptive learning rate measure the step from
+    them, and the surrogate is weighted by pi_theta / pi_behav (capped at
+    :data:`MAX_IMPORTANCE_RATIO`). Clipping against the behaviour policy instead counted the
+    previous update's step too (the oracle's learning rate then halved each step,
+    docs/oracle.md); leaving out the behaviour weight (our first version) let a student's
+    actions, acted many stds (0.2) off the policy the update starts from, push huge
+    log-probability gradients: the update ran away (docs/unified.md, "Speed"). The
+    weight makes such rows count ~0. Writes the proximal policy's loc and scale for the
+    exact KL.
     """
+    if not loss.delay_actor:
+        raise ValueError("a lagged batch needs the loss of make_ppo(..., lagged=True)")
     with torch.no_grad():
+        loss.target_actor_network_params.update_(loss.actor_network_params.detach())
+        # the exact KL (ppo_update) from the proximal policy, not from the acting one
         dist = loss.actor_network.get_dist(data.select(*loss.actor_network.in_keys).clone())
-        data.set(LOG_PROB, dist.log_prob(data["action"]))
         data.set(LOC, dist.base_dist.loc)
         data.set(SCALE, dist.base_dist.scale)
 
@@ -159,12 +173,16 @@ def ppo_update(loss: ClipPPOLoss, optimizer: torch.optim.Optimizer, data: Tensor
     ``exact_kl`` (the acting policy's ``("hidden","action_loc"/"action_scale")`` stored in
     ``data`` by the collector): the learning rate follows the exact KL between the acting
     and the current policy; else torchrl's sampled ``kl_approx``. ``lagged``: the batch was
-    acted with the weights of an earlier update (``collector.overlap``); see
-    :func:`use_current_policy_as_reference`.
+    acted with the weights of an earlier update (``collector.overlap``; ``loss`` from
+    ``make_ppo(..., lagged=True)``); see :func:`use_current_policy_as_proximal`.
     """
+    # lagged: the exact KL from the proximal policy. The sampled kl_approx is taken over
+    # the behaviour policy's actions, not the proximal one's: on a student's lagged batch
+    # it read 1-5 and pinned the learning rate at its floor
+    exact_kl = exact_kl or lagged
     data = data.select(*loss_keys(loss, exact_kl))
     if lagged:
-        use_current_policy_as_reference(loss, data)
+        use_current_policy_as_proximal(loss, data)
     sums: dict[str, float] = defaultdict(float)
     count = 0
     size = data.shape[0] // cfg.minibatches
