@@ -201,6 +201,20 @@ def test_checkpoint_of_another_student_is_refused(artefacts, tmp_path):
         train_student(tiny("rma_h", artefacts), tmp_path / "b", resume=str(run.checkpoint))
 
 
+def test_a_student_is_refused_through_another_camera(artefacts, tmp_path):
+    """The layout checks the frames' shape, not what they show: a student trained through
+    a 30-degree camera loaded into a run with a 55-degree one would have seen other ground
+    in the same pixels, silently. Failed before: it loaded."""
+    from legoh.policies.student import student_from_checkpoint
+
+    run = train_student(tiny("unified", artefacts), tmp_path / "a")
+    student_from_checkpoint(tiny("unified", artefacts), run.checkpoint)  # same camera: loads
+    with pytest.raises(CheckpointError, match=r"robot.camera.pitch_deg=30.0, but this run has "
+                                              r"robot.camera.pitch_deg=55.0"):
+        student_from_checkpoint(tiny("unified", artefacts, "robot.camera.pitch_deg=55"),
+                                run.checkpoint)
+
+
 def test_an_overlapped_student_trains_with_decoupled_ppo(artefacts, tmp_path):
     """With collector.overlap a student acts with the weights of the update before last.
     Without decoupled PPO's behaviour weight its PPO ran away (grad norm 9e7, NaN actions,

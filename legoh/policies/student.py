@@ -113,14 +113,43 @@ def build_student(cfg: DictConfig, env: EnvBase | None = None) -> Student:
                         learn_std=False)
 
 
+# what a depth student's frames depend on beyond their shape (the layout checks that): a
+# student that learned from one camera pose or depth range sees nonsense through another
+SENSOR_KEYS = ("robot.camera.body", "robot.camera.pos", "robot.camera.pitch_deg",
+               "robot.camera.fovy_deg", "env.depth.far", "env.depth.every",
+               "env.depth.history", "env.depth.stride", "algo.depth_far")
+
+
+def check_sensors(cfg: DictConfig, path: str | Path, stored: dict) -> None:
+    """Refuse a depth student's checkpoint (its stored config ``stored``) trained with
+    another camera or depth setting than ``cfg``'s, naming the key and both values. A key
+    the checkpoint did not store (older runs) is not checked."""
+    stored_cfg = OmegaConf.create(stored)
+    for key in SENSOR_KEYS:
+        have = OmegaConf.select(stored_cfg, key, default="<absent>")
+        if isinstance(have, str) and have == "<absent>":
+            continue
+        want = OmegaConf.select(cfg, key)
+        have, want = [OmegaConf.to_object(v) if OmegaConf.is_config(v) else v
+                      for v in (have, want)]
+        if have != want:
+            raise CheckpointError(f"{path} was trained with {key}={have}, but this run has "
+                                  f"{key}={want}: a student sees its depth only through the "
+                                  f"camera it learned with (pass {key}={have})")
+
+
 def read_student_checkpoint(cfg: DictConfig, path: str | Path, student: Student) -> dict:
-    """A stage-2 checkpoint for ``student``; refuses another robot, layout or student."""
+    """A stage-2 checkpoint for ``student``; refuses another robot, layout or student, and
+    for a depth student another camera or depth setting (:func:`check_sensors`)."""
     have = load_checkpoint(path, expect_robot=cfg.robot.name)["extra"].get("student")
     if have != cfg.algo.student:  # checked first: the clearest message for a mixed-up path
         raise CheckpointError(f"{path} holds student {have!r}, but this run builds "
                               f"{cfg.algo.student!r} (algo.student)")
-    return load_checkpoint(path, expect_robot=cfg.robot.name,
-                           expect_layout=student.dims.as_layout())
+    state = load_checkpoint(path, expect_robot=cfg.robot.name,
+                            expect_layout=student.dims.as_layout())
+    if student.dims.depth is not None:
+        check_sensors(cfg, path, state.get("config", {}))
+    return state
 
 
 def load_student(cfg: DictConfig, path: str | Path, student: Student) -> dict:
