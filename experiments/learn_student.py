@@ -184,13 +184,15 @@ def train(args) -> None:
 def bench_config(args, teacher: Path):
     """learn_hike's benchmark (its ``bench_overrides``) with this campaign's student: the
     student's settings (``algo``, ``env.depth``) from the run's checkpoint when there is
-    one, so a campaign run with, e.g., ``algo.net=paper`` is scored with the same network."""
+    one, so a campaign run with, e.g., ``algo.net=paper`` is scored with the same network
+    (and ``robot.camera``: a student sees through the camera it learned with)."""
     cfg = student_config(args, teacher, "hike", bench_overrides(args))
     ckpt = run_dir(args) / f"{cfg.algo.name}.pt"
     if ckpt.is_file():
         trained = torch.load(ckpt, map_location="cpu", weights_only=False)["config"]
         algo = {**trained["algo"], "oracle_checkpoint": str(teacher)}
-        cfg = OmegaConf.merge(cfg, {"algo": algo, "env": {"depth": trained["env"]["depth"]}})
+        cfg = OmegaConf.merge(cfg, {"algo": algo, "env": {"depth": trained["env"]["depth"]},
+                                    "robot": {"camera": trained["robot"]["camera"]}})
     return cfg
 
 

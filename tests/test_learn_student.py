@@ -12,6 +12,8 @@ import sys
 from pathlib import Path
 
 import pytest
+import torch
+from omegaconf import OmegaConf
 
 ROOT = Path(__file__).resolve().parents[1]
 TEACHER = ROOT / "experiments/results/learn_hike/h1-s0/oracle.pt"
@@ -131,3 +133,19 @@ def test_the_students_reward_is_its_oracles() -> None:
         weights = preset_weights(cfg.env.reward_preset, rewards, dict(cfg.robot.table6_weights),
                                  dict(cfg.robot.reward_scales))
         assert weights["tracking_waypoint_vel"] == kernel and weights["tracking_lin_vel"] == 0
+
+
+def test_snapshots_are_scored_through_the_camera_they_learned_with(tmp_path) -> None:
+    """A campaign trained with robot.camera.pitch_deg=55 is benchmarked through that camera
+    even when --evaluate is run without the override (the snapshots load as plain state
+    dicts: no checkpoint check would catch it). Failed before: scored at 30 degrees."""
+    sys.path.insert(0, str(ROOT / "experiments"))
+    import learn_student
+
+    args = learn_student.make_parser().parse_args(["--robot", "h1", "--out", str(tmp_path)])
+    trained = learn_student.student_config(args, Path("teacher.pt"), "hike",
+                                           ["robot.camera.pitch_deg=55"])
+    torch.save({"config": OmegaConf.to_container(trained, resolve=True)},
+               tmp_path / f"{trained.algo.name}.pt")
+    cfg = learn_student.bench_config(args, Path("teacher.pt"))
+    assert cfg.robot.camera.pitch_deg == 55.0
