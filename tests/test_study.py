@@ -127,6 +127,23 @@ def test_paper_tables_set_a_study_beside_the_paper_and_compare_orderings(tmp_pat
     assert counts == {} and "paper_tables.py --run --frames 1000" in "\n".join(lines)
 
 
+
+def test_paper_tables_page_keeps_every_table_when_one_is_picked(tmp_path, monkeypatch) -> None:
+    """``--tables table4`` picks the studies to run; the page still shows all five tables.
+    Failed before: paper_tables.md was rewritten with Table 4 alone."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments"))
+    import paper_tables
+
+    monkeypatch.setattr(paper_tables, "RESULTS", tmp_path)
+    monkeypatch.setattr(sys, "argv", ["paper_tables.py", "--frames", "1000", "--tables",
+                                      "table4"])
+    paper_tables.main()
+    page = (tmp_path / "paper_tables.md").read_text(encoding="utf-8")
+    assert [f"## Appendix Table {n}:" in page for n in (1, 2, 3, 4, 8)] == [True] * 5
+
 def test_paper_jobs_run_once_and_each_study_reads_its_own(tmp_path, monkeypatch) -> None:
     """The five paper tables compare 8 distinct jobs a seed (11 before: LEGO-H on H1 ran in
     four studies); one folder of job records serves every study, each table reading only
