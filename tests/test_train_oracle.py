@@ -250,17 +250,15 @@ def test_a_lagged_batch_is_clipped_against_the_current_policy() -> None:
     # already counts the previous step (the adaptive lr then shrinks); lagged=True makes the
     # weights the update starts from the proximal policy: KL 0 and no clipping at lr 0.
     cfg, actor, loss, data = _fixed_batch()
-    lagged, _ = make_ppo(actor, loss.critic_network, cfg.algo, lagged=True)
     algo = cfg.algo.copy()
     algo.desired_kl, algo.epochs, algo.minibatches = 0.0, 1, 1
     ppo_update(loss, torch.optim.Adam(loss.parameters(), lr=1e-2), data, algo, exact_kl=True)
     still = torch.optim.Adam(loss.parameters(), lr=0.0)
     stale = ppo_update(loss, still, data.clone(), algo, exact_kl=True)
-    fresh = ppo_update(lagged, still, data.clone(), algo, exact_kl=True, lagged=True)
+    fresh = ppo_update(loss, still, data.clone(), algo, exact_kl=True, lagged=True)
     assert stale["kl_exact"] > 1e-4
     assert fresh["kl_exact"] == pytest.approx(0.0, abs=1e-7)
-    with pytest.raises(ValueError, match="lagged=True"):
-        ppo_update(loss, still, data.clone(), algo, lagged=True)
+    assert fresh["clip_fraction"] == 0.0
 
 
 def test_rows_acted_far_off_the_current_policy_barely_move_a_lagged_update() -> None:
@@ -275,7 +273,6 @@ def test_rows_acted_far_off_the_current_policy_barely_move_a_lagged_update() -> 
     algo.desired_kl, algo.epochs, algo.minibatches, algo.max_grad_norm = 0.0, 1, 1, 1e12
     algo.value_coef = algo.entropy_coef = 0.0  # the surrogate's gradient alone
     loss, _ = make_ppo(actor, loss.critic_network, algo)
-    lagged, _ = make_ppo(actor, loss.critic_network, algo, lagged=True)
     with torch.no_grad():
         dist = actor.get_dist(data.select(*actor.in_keys).clone()).base_dist
     torch.manual_seed(0)
@@ -289,8 +286,43 @@ def test_rows_acted_far_off_the_current_policy_barely_move_a_lagged_update() -> 
     still = torch.optim.Adam(loss.parameters(), lr=0.0)
     on_policy = ppo_update(loss, still, acted_by(dist), algo)["grad_norm"]
     far = torch.distributions.Normal(dist.loc + 5 * dist.scale, dist.scale)  # 5 stds off
-    lag = ppo_update(lagged, still, acted_by(far), algo, lagged=True)["grad_norm"]
+    lag = ppo_update(loss, still, acted_by(far), algo, lagged=True)["grad_norm"]
     assert lag < 0.1 * on_policy
+
+
+def test_the_lagged_loss_is_torchrls_decoupled_ppo() -> None:
+    """KeepDistPPOLoss on a lagged batch computes torchrl's decoupled PPO
+    (delay_actor=True, max_importance_ratio=2) with the proximal log-prob computed once."""
+    from torchrl.objectives import ClipPPOLoss
+
+    from legoh.objectives.ppo import MAX_IMPORTANCE_RATIO, use_current_policy_as_proximal
+
+    cfg, actor, loss, data = _fixed_batch()
+    with torch.no_grad():  # the behaviour policy: the mean moved by half a std
+        dist = actor.get_dist(data.select(*actor.in_keys).clone()).base_dist
+        behaviour = torch.distributions.Normal(dist.loc + 0.5 * dist.scale, dist.scale)
+        torch.manual_seed(0)
+        action = behaviour.sample()
+        data.set("action", action)
+        data.set("sample_log_prob", behaviour.log_prob(action).sum(-1))
+        for p in actor.parameters():  # this update's start: another step on from there
+            p.add_(0.01 * torch.randn_like(p))
+    reference = ClipPPOLoss(actor, loss.critic_network, clip_epsilon=cfg.algo.clip_epsilon,
+                            entropy_coeff=cfg.algo.entropy_coef,
+                            critic_coeff=cfg.algo.value_coef, loss_critic_type="l2",
+                            normalize_advantage=True, delay_actor=True,
+                            max_importance_ratio=MAX_IMPORTANCE_RATIO)
+    reference.set_keys(sample_log_prob="sample_log_prob")
+    with torch.no_grad():
+        reference.target_actor_network_params.update_(reference.actor_network_params.detach())
+    ours = data.clone()
+    use_current_policy_as_proximal(loss, ours)
+    with torch.no_grad():  # one step of the policy after the update began
+        for p in actor.parameters():
+            p.add_(0.01 * torch.randn_like(p))
+        want, got = reference(data.clone()), loss(ours)
+    for key in ("loss_objective", "clip_fraction", "kl_approx", "ESS"):
+        assert float(got[key]) == pytest.approx(float(want[key]), rel=1e-4, abs=1e-6), key
 
 
 def test_update_precision_auto_follows_the_cpu(monkeypatch) -> None:

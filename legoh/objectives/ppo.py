@@ -13,6 +13,7 @@ float32.
 
 from __future__ import annotations
 
+import math
 from collections import defaultdict
 from pathlib import Path
 
@@ -22,9 +23,10 @@ from torchrl.objectives import ClipPPOLoss
 from torchrl.objectives.value import GAE
 
 from legoh.config.algo import OracleConfig
-from legoh.modules.actor_critic import LOC, LOG_PROB, SCALE, STATE_VALUE
+from legoh.modules.actor_critic import LOC, SCALE, STATE_VALUE
 
 LR_BOUNDS = (1e-5, 1e-2)  # rsl_rl's clamp for the adaptive learning rate
+PROX_LOG_PROB = "proximal_log_prob"  # a lagged batch's log-prob under the update's start
 # cap of pi_theta / pi_behav on a lagged batch (use_current_policy_as_proximal): a row acted
 # in the behaviour policy's tail but near the current mean would otherwise weigh ~unbounded
 MAX_IMPORTANCE_RATIO = 2.0
@@ -33,12 +35,29 @@ MAX_IMPORTANCE_RATIO = 2.0
 class KeepDistPPOLoss(ClipPPOLoss):
     """torchrl's ClipPPOLoss that keeps the minibatch's current policy distribution
     (``last_dist``): the exact KL reads it instead of running the actor a second time
-    (that forward was ~15 % of an update)."""
+    (that forward was ~15 % of an update).
+
+    On a lagged batch (``PROX_LOG_PROB`` present, :func:`use_current_policy_as_proximal`)
+    it is decoupled PPO as torchrl's ``delay_actor=True, max_importance_ratio=`` computes it
+    (the same terms, ``tests/test_train_oracle.py``), but with the proximal log-probability
+    computed once per update: torchrl runs the proximal actor on every minibatch, which made
+    a lagged update 1.4x a plain one (N = 256, 3 epochs, bfloat16).
+    """
 
     last_dist = None
 
     def _log_weight(self, tensordict, adv_shape):
-        out = super()._log_weight(tensordict, adv_shape=adv_shape)
+        prox = tensordict.get(PROX_LOG_PROB, None)
+        if prox is None:
+            out = super()._log_weight(tensordict, adv_shape=adv_shape)
+        else:
+            behaviour = tensordict.get(self.tensor_keys.sample_log_prob)
+            log_prob, dist, _ = self._get_cur_log_prob(tensordict)
+            log_weight = (log_prob - prox).unsqueeze(-1)  # clipped: pi_theta / pi_prox
+            # pi_prox / pi_behav, lifted so that pi_theta / pi_behav <= the cap (torchrl's rule)
+            log_is = torch.minimum((prox - behaviour).unsqueeze(-1),
+                                   math.log(MAX_IMPORTANCE_RATIO) - log_weight.detach())
+            out = (log_weight, dist, (prox - log_prob).unsqueeze(-1), log_is)
         self.last_dist = out[1]
         return out
 
@@ -76,17 +95,13 @@ class OnePassGAE:
         return self.gae(batch)
 
 
-def make_ppo(actor, critic, cfg: OracleConfig, lagged: bool = False
-             ) -> tuple[ClipPPOLoss, OnePassGAE]:
+def make_ppo(actor, critic, cfg: OracleConfig) -> tuple[ClipPPOLoss, OnePassGAE]:
     """ClipPPOLoss (advantages normalised per minibatch, values clipped when
-    ``cfg.clip_value``) and GAE over the critic. ``lagged`` (``collector.overlap``: batches
-    acted by the weights of an earlier update): decoupled PPO, see
-    :func:`use_current_policy_as_proximal`."""
+    ``cfg.clip_value``) and GAE over the critic."""
     loss = KeepDistPPOLoss(actor, critic, clip_epsilon=cfg.clip_epsilon,
                            entropy_coeff=cfg.entropy_coef, critic_coeff=cfg.value_coef,
                            loss_critic_type="l2", clip_value=bool(cfg.clip_value),
-                           normalize_advantage=True, delay_actor=lagged,
-                           max_importance_ratio=MAX_IMPORTANCE_RATIO if lagged else None)
+                           normalize_advantage=True)
     loss.set_keys(sample_log_prob="sample_log_prob")
     return loss, OnePassGAE(critic, cfg.gamma, cfg.gae_lambda)
 
@@ -121,7 +136,7 @@ def gaussian_kl(loc0: torch.Tensor, scale0: torch.Tensor, loc1: torch.Tensor,
 
 
 def use_current_policy_as_proximal(loss: ClipPPOLoss, data: TensorDictBase) -> None:
-    """Decoupled PPO (Hilton et al., 2021, torchrl's ``delay_actor``) for a lagged batch.
+    """Decoupled PPO (Hilton et al., 2021) for a lagged batch.
 
     With ``collector.overlap`` a batch is acted by the weights of the update before the
     last one (the behaviour policy). The weights this update starts from become the
@@ -132,15 +147,12 @@ def use_current_policy_as_proximal(loss: ClipPPOLoss, data: TensorDictBase) -> N
     docs/oracle.md); leaving out the behaviour weight (our first version) let a student's
     actions, acted many stds (0.2) off the policy the update starts from, push huge
     log-probability gradients: the update ran away (docs/unified.md, "Speed"). The
-    weight makes such rows count ~0. Writes the proximal policy's loc and scale for the
-    exact KL.
+    weight makes such rows count ~0. Writes the proximal log-probability
+    (``PROX_LOG_PROB``, read by :class:`KeepDistPPOLoss`) and loc and scale (the exact KL).
     """
-    if not loss.delay_actor:
-        raise ValueError("a lagged batch needs the loss of make_ppo(..., lagged=True)")
     with torch.no_grad():
-        loss.target_actor_network_params.update_(loss.actor_network_params.detach())
-        # the exact KL (ppo_update) from the proximal policy, not from the acting one
         dist = loss.actor_network.get_dist(data.select(*loss.actor_network.in_keys).clone())
+        data.set(PROX_LOG_PROB, dist.log_prob(data["action"]))
         data.set(LOC, dist.base_dist.loc)
         data.set(SCALE, dist.base_dist.scale)
 
@@ -173,8 +185,8 @@ def ppo_update(loss: ClipPPOLoss, optimizer: torch.optim.Optimizer, data: Tensor
     ``exact_kl`` (the acting policy's ``("hidden","action_loc"/"action_scale")`` stored in
     ``data`` by the collector): the learning rate follows the exact KL between the acting
     and the current policy; else torchrl's sampled ``kl_approx``. ``lagged``: the batch was
-    acted with the weights of an earlier update (``collector.overlap``; ``loss`` from
-    ``make_ppo(..., lagged=True)``); see :func:`use_current_policy_as_proximal`.
+    acted with the weights of an earlier update (``collector.overlap``); see
+    :func:`use_current_policy_as_proximal`.
     """
     # lagged: the exact KL from the proximal policy. The sampled kl_approx is taken over
     # the behaviour policy's actions, not the proximal one's: on a student's lagged batch

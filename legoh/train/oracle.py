@@ -40,8 +40,7 @@ class OraclePPO(Algorithm):
         self.models = {"actor": actor.to(self.device), "critic": critic.to(self.device),
                        "adaptation": adaptation.to(self.device)}
         self.actor = self.policy = actor
-        self.loss, self.gae = make_ppo(actor, critic, algo,  # after the move: it holds params
-                                       lagged=bool(cfg.collector.overlap))
+        self.loss, self.gae = make_ppo(actor, critic, algo)  # after the move: it holds params
         self.optimizers = {
             "ppo": torch.optim.Adam(self.loss.parameters(), lr=algo.lr),
             "adaptation": torch.optim.Adam(adaptation.parameters(), lr=algo.adaptation_lr)}

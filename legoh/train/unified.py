@@ -66,8 +66,7 @@ class StudentDistillation(Algorithm):
                 module.to(self.device)
         self.oracle = oracle
         self.models = {**student.modules(), "critic": critic}
-        self.loss, self.gae = make_ppo(student.locomotion, critic, algo,
-                                       lagged=bool(cfg.collector.overlap))
+        self.loss, self.gae = make_ppo(student.locomotion, critic, algo)
         self.optimizers = {
             "ppo": torch.optim.Adam(self.loss.parameters(), lr=algo.lr),
             "distill": torch.optim.Adam(
