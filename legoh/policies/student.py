@@ -124,14 +124,14 @@ def check_sensors(cfg: DictConfig, path: str | Path, stored: dict) -> None:
     """Refuse a depth student's checkpoint (its stored config ``stored``) trained with
     another camera or depth setting than ``cfg``'s, naming the key and both values. A key
     the checkpoint did not store (older runs) is not checked."""
-    stored_cfg = OmegaConf.create(stored)
+    stored_cfg, absent = OmegaConf.create(stored), object()
     for key in SENSOR_KEYS:
-        have = OmegaConf.select(stored_cfg, key, default="<absent>")
-        if isinstance(have, str) and have == "<absent>":
+        have = OmegaConf.select(stored_cfg, key, default=absent)
+        if have is absent:
             continue
         want = OmegaConf.select(cfg, key)
-        have, want = [OmegaConf.to_object(v) if OmegaConf.is_config(v) else v
-                      for v in (have, want)]
+        if OmegaConf.is_config(have):  # a list (the camera's position)
+            have, want = list(have), list(want)
         if have != want:
             raise CheckpointError(f"{path} was trained with {key}={have}, but this run has "
                                   f"{key}={want}: a student sees its depth only through the "
