@@ -80,7 +80,7 @@ from learn_hike import CATEGORIES, HIKE, bench_overrides, bench_snapshot  # noqa
 from learn_walk import ROBOTS, compose_run, read_evals, walk_env_settings, walk_test  # noqa: E402
 from omegaconf import OmegaConf  # noqa: E402
 
-from legoh.eval.benchmark import student_eval_env_fn  # noqa: E402
+from legoh.eval.benchmark import BENCHMARK_VERSION, student_eval_env_fn  # noqa: E402
 from legoh.policies.oracle import load_teacher  # noqa: E402
 from legoh.policies.pretrained import shipped_oracle  # noqa: E402
 from legoh.policies.student import build_student, make_student_env, state_shapes  # noqa: E402
@@ -208,11 +208,12 @@ def bench_policy(make_env, policy) -> dict:
 
 
 def score_teacher(cfg, make_env, path: Path, cache: dict, sha: str) -> dict | None:
-    """The teacher's benchmark row, ``cache``d by its file's hash and the protocol
-    (``cfg.eval``); None when the file at ``path`` is no longer the one the snapshot
-    learned from."""
+    """The teacher's benchmark row, ``cache``d by its file's hash, the protocol
+    (``cfg.eval``) and the benchmark's code version (``BENCHMARK_VERSION``); None when the
+    file at ``path`` is no longer the one the snapshot learned from."""
     protocol = OmegaConf.to_container(cfg.eval, resolve=True)
-    key = f"{sha} {hashlib.sha256(json.dumps(protocol, sort_keys=True).encode()).hexdigest()[:8]}"
+    digest = hashlib.sha256(json.dumps(protocol, sort_keys=True).encode()).hexdigest()[:8]
+    key = f"{sha} {digest} v{BENCHMARK_VERSION}"
     if key in cache:
         return cache[key]["row"]
     if not Path(path).is_file() or file_hash(path) != sha:

@@ -149,3 +149,22 @@ def test_snapshots_are_scored_through_the_camera_they_learned_with(tmp_path) -> 
                tmp_path / f"{trained.algo.name}.pt")
     cfg = learn_student.bench_config(args, Path("teacher.pt"))
     assert cfg.robot.camera.pitch_deg == 55.0
+
+
+def test_a_teacher_score_cached_by_older_benchmark_code_is_not_reused(tmp_path, capsys) -> None:
+    """teacher.json entries carry the benchmark's version: an entry written under the old
+    key (hash and protocol only, before BENCHMARK_VERSION) is stale, so the teacher is
+    scored again (here its file is gone: no ratio). Failed before: the stale row came back."""
+    sys.path.insert(0, str(ROOT / "experiments"))
+    import hashlib
+
+    import learn_student
+
+    args = learn_student.make_parser().parse_args(["--robot", "h1", "--out", str(tmp_path)])
+    cfg = learn_student.bench_config(args, Path("teacher.pt"))
+    protocol = OmegaConf.to_container(cfg.eval, resolve=True)
+    digest = hashlib.sha256(json.dumps(protocol, sort_keys=True).encode()).hexdigest()[:8]
+    cache = {f"abc123 {digest}": {"row": {"d_sr": 71.0}}}  # an entry of the old code
+    gone = tmp_path / "oracle.pt"
+    assert learn_student.score_teacher(cfg, None, gone, cache, "abc123") is None
+    assert "is gone or changed" in capsys.readouterr().out

@@ -52,6 +52,11 @@ from legoh.policies.student import make_student_env, state_shapes
 from legoh.threads import torch_threads
 
 OVERALL = "overall"
+# Bumped by a change that moves the scores of the same policy under the same ``eval``
+# settings (spawns, randomisation draws, metric definitions): a score cached under another
+# version (learn_student's teacher.json) is stale. 2: the randomisation drawn from the
+# first step (``from_first_step``).
+BENCHMARK_VERSION = 2
 
 
 @dataclasses.dataclass(frozen=True)
