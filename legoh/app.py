@@ -127,13 +127,14 @@ def export_meta(cfg: DictConfig) -> dict:
 def export(cfg: DictConfig, out_dir: Path) -> Path:
     """``mode=export``: the student of ``checkpoint`` as one TorchScript file."""
     from legoh.export import export_student
-    from legoh.policies.student import student_from_checkpoint
+    from legoh.policies.student import sensors_from_checkpoint, student_from_checkpoint
 
     if cfg.algo.stage == Stage.oracle:
         raise ValueError("mode=export deploys a depth student (algo=unified, ep_h, ...); "
                          "the oracle needs privileged inputs a robot does not have")
     if not cfg.checkpoint:
         raise ValueError("mode=export needs checkpoint=<path to a stage-2 checkpoint>")
+    cfg = sensors_from_checkpoint(cfg, cfg.checkpoint)  # the meta: its own camera and depth
     student = student_from_checkpoint(cfg, cfg.checkpoint)
     path = export_student(student, out_dir / "policy.ts", meta=export_meta(cfg))
     print(f"[legoh] exported {cfg.checkpoint} to {path}")

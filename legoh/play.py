@@ -130,12 +130,13 @@ def render_policy_video(cfg: DictConfig, actor, out_path: str | Path,
 
 def main(cfg: DictConfig, out_dir: Path) -> dict:
     """``mode=play``: film ``checkpoint``'s oracle (the untrained one without it)."""
-    from legoh.eval.cli import build_actor
+    from legoh.eval.cli import build_actor, for_checkpoint
 
     checkpoint = OmegaConf.select(cfg, "checkpoint", default=None)
     if not checkpoint:
         warnings.warn("no checkpoint given (checkpoint=<path>): playing an untrained actor",
                       stacklevel=2)
+    cfg, checkpoint = for_checkpoint(cfg, checkpoint)  # a student's film: its own camera
     policy, env_fn = build_actor(cfg, checkpoint)
     if env_fn is None:  # an oracle
         result = render_policy_video(cfg, policy, out_dir / "play.mp4")

@@ -215,6 +215,28 @@ def test_a_student_is_refused_through_another_camera(artefacts, tmp_path):
                                 run.checkpoint)
 
 
+def test_evaluation_sees_through_the_camera_the_student_learned_with(artefacts, tmp_path,
+                                                                     capsys):
+    """Using a trained student (mode=eval, play, export) takes its camera and depth settings
+    from its checkpoint: a 30-degree student stays usable under a 55-degree default, its
+    env built at 30 degrees. Failed before: refused (no for_checkpoint)."""
+    from legoh.eval.cli import build_actor, for_checkpoint
+
+    run = train_student(tiny("unified", artefacts), tmp_path / "a")
+    cfg = tiny("unified", artefacts, "robot.camera.pitch_deg=55", "env.depth.far=4.0")
+    own, path = for_checkpoint(cfg, str(run.checkpoint))
+    assert own.robot.camera.pitch_deg == 30.0 and own.env.depth.far == 3.0
+    assert path == str(run.checkpoint) and cfg.robot.camera.pitch_deg == 55.0  # a copy
+    assert "robot.camera.pitch_deg=30.0, env.depth.far=3.0" in capsys.readouterr().out
+    student, env_fn = build_actor(cfg, str(run.checkpoint))
+    env = env_fn(0)
+    try:
+        assert env.base_env.cfg.depth.far == 3.0
+        assert env.base_env.depth_cam is not None
+    finally:
+        env.close()
+
+
 def test_an_overlapped_student_trains_with_decoupled_ppo(artefacts, tmp_path):
     """With collector.overlap a student acts with the weights of the update before last.
     Without decoupled PPO's behaviour weight its PPO ran away (grad norm 9e7, NaN actions,

@@ -11,16 +11,26 @@ from legoh.config.algo import Stage
 from legoh.eval.benchmark import evaluate, make_eval_env, student_eval_env_fn
 from legoh.policies.oracle import build_oracle, load_oracle_actor
 from legoh.policies.pretrained import resolve_checkpoint, shipped_stage
-from legoh.policies.student import student_from_checkpoint
+from legoh.policies.student import sensors_from_checkpoint, student_from_checkpoint
+
+
+def for_checkpoint(cfg: DictConfig, checkpoint: str | None) -> tuple[DictConfig, str | None]:
+    """``checkpoint`` resolved (``pretrained``: the robot's shipped file for this algo,
+    ``pretrained/<robot>_<oracle | algo name>.pt``) and, for a student, ``cfg`` with the
+    camera and depth settings it was trained with (:func:`sensors_from_checkpoint`)."""
+    if checkpoint == "pretrained":
+        checkpoint = str(resolve_checkpoint(checkpoint, cfg.robot.name, shipped_stage(cfg)))
+    if checkpoint and cfg.algo.stage != Stage.oracle:
+        cfg = sensors_from_checkpoint(cfg, checkpoint)
+    return cfg, checkpoint
 
 
 def build_actor(cfg: DictConfig, checkpoint: str | None = None):
     """The policy of ``cfg.algo`` with the weights of ``checkpoint`` (its robot, observation
-    layout and, for a student, its student type must match this config), and the env
-    factory the benchmark needs for it (None: the plain evaluation env). ``pretrained``:
-    the robot's shipped file for this algo (``pretrained/<robot>_<oracle | algo name>.pt``)."""
-    if checkpoint == "pretrained":
-        checkpoint = str(resolve_checkpoint(checkpoint, cfg.robot.name, shipped_stage(cfg)))
+    layout and, for a student, its student type must match this config; a student sees
+    through its own camera: :func:`for_checkpoint`), and the env factory the benchmark
+    needs for it (None: the plain evaluation env)."""
+    cfg, checkpoint = for_checkpoint(cfg, checkpoint)
     if cfg.algo.stage != Stage.oracle:
         return build_student_policy(cfg, checkpoint)
     env = make_eval_env(OmegaConf.merge(cfg, {"eval": {"robots": 1}}))

@@ -138,6 +138,30 @@ def check_sensors(cfg: DictConfig, path: str | Path, stored: dict) -> None:
                                   f"camera it learned with (pass {key}={have})")
 
 
+def sensors_from_checkpoint(cfg: DictConfig, path: str | Path) -> DictConfig:
+    """``cfg`` with the camera and depth settings (``SENSOR_KEYS``) a student's checkpoint
+    was trained with, for using it (evaluation, play, export): a student sees only through
+    the camera it learned with, so an old checkpoint stays usable when a default changes.
+    Training from a checkpoint (resume) still refuses a mismatch (:func:`check_sensors`).
+    Prints the settings it changed; keys the checkpoint did not store stay as they are."""
+    stored = OmegaConf.create(load_checkpoint(path).get("config", {}))
+    absent, changed = object(), []
+    cfg = cfg.copy()
+    for key in SENSOR_KEYS:
+        have = OmegaConf.select(stored, key, default=absent)
+        if have is absent:
+            continue
+        if OmegaConf.is_config(have):
+            have = list(have)
+        want = OmegaConf.select(cfg, key)
+        if (list(want) if OmegaConf.is_config(want) else want) != have:
+            OmegaConf.update(cfg, key, have, merge=False)
+            changed.append(f"{key}={have}")
+    if changed:
+        print(f"[legoh] {path}: the student's own sensors: {', '.join(changed)}")
+    return cfg
+
+
 def read_student_checkpoint(cfg: DictConfig, path: str | Path, student: Student) -> dict:
     """A stage-2 checkpoint for ``student``; refuses another robot, layout or student, and
     for a depth student another camera or depth setting (:func:`check_sensors`)."""
