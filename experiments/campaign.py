@@ -268,7 +268,11 @@ def compare_runs(runs: list[Path], stem: Path, test: str, test_title: str) -> Pa
     missing = [str(r) for r in runs if not (r / "evals.csv").exists()]
     if missing:
         raise SystemExit(f"--compare: no evals.csv in {', '.join(missing)}")
-    fig, axes = plt.subplots(1, 4, figsize=(20, 4))
+    benches = [read_rows(r / "bench.csv") for r in runs]
+    scored = all(rows and "d_sr" in rows[0] for rows in benches)
+    fig, grid = plt.subplots(2 if scored else 1, 4, figsize=(20, 8 if scored else 4),
+                             squeeze=False)
+    axes = grid[0]
     lines = ["| run | minutes | frames (M) | walking >= 10 m (%) | m toward the terminus | "
              "falls in the test (%) | mean level | training falls (%) | randomisation |",
              "|---|---|---|---|---|---|---|---|---|"]
@@ -296,11 +300,54 @@ def compare_runs(runs: list[Path], stem: Path, test: str, test_title: str) -> Pa
         ax.legend(fontsize=7)
     for ax in axes[:2]:
         ax.axhline(80, color="k", lw=0.5)
+    if scored:
+        lines += bench_panels(grid[1], runs, benches)
     fig.tight_layout()
     fig.savefig(stem.with_suffix(".png"), dpi=90)
     plt.close(fig)
     stem.with_suffix(".md").write_text(
         f"# {', '.join(r.name for r in runs)}\n\nEach walk test ({test_title}) against "
-        "training minutes.\n\n" + "\n".join(lines) + "\n", encoding="utf-8")
+        "training minutes" + (", then each benchmark (SR %, levels 0-4 unless said; the "
+                              "teacher's in brackets)" if scored else "") + ".\n\n"
+        + "\n".join(lines) + "\n", encoding="utf-8")
     print(stem.with_suffix(".md").read_text(encoding="utf-8"))
     return stem
+
+
+BENCH_CATEGORIES = ("randommix", "ditch", "hurdle", "gap", "forest")
+
+
+def bench_panels(axes, runs: list[Path], benches: list[list[dict]]) -> list[str]:
+    """The benchmark row of :func:`compare_runs`: RandomMix 0-2 SR against minutes and
+    frames (the teacher's dashed), Ditch SR and the five categories' mean SR against
+    frames; returns the table's lines."""
+    lines = ["", "| run | minutes | frames (M) | RandomMix 0-2 | "
+             + " | ".join(BENCH_CATEGORIES) + " |", "|---" * (4 + len(BENCH_CATEGORIES)) + "|"]
+    for i, (run, rows) in enumerate(zip(runs, benches, strict=True)):
+        c = f"C{i}"
+        minutes = np.array([r["minutes"] for r in rows])
+        frames = np.array([r["frames"] for r in rows]) / 1e6
+        d_sr = np.array([r["d_sr"] for r in rows])
+        cats = np.array([[r.get(f"sr_{k}", np.nan) for k in BENCH_CATEGORIES] for r in rows])
+        for ax, x in ((axes[0], minutes), (axes[1], frames)):
+            ax.plot(x, d_sr, "o-", color=c, label=run.name)
+            if "teacher_d_sr" in rows[0]:
+                ax.plot(x, [r["teacher_d_sr"] for r in rows], "--", color=c, lw=0.8)
+        axes[2].plot(frames, cats[:, 1], "o-", color=c, label=run.name)
+        axes[3].plot(frames, cats.mean(1), "o-", color=c, label=run.name)
+        for j, r in enumerate(rows):
+            def cell(key: str, r=r) -> str:
+                own, theirs = r.get(key, np.nan), r.get(f"teacher_{key}", np.nan)
+                return f"{own:.0f}" + ("" if theirs != theirs else f" ({theirs:.0f})")
+            lines.append(f"| {run.name} | {minutes[j]:.1f} | {frames[j]:.2f} | {cell('d_sr')} | "
+                         + " | ".join(cell(f"sr_{k}") for k in BENCH_CATEGORIES) + " |")
+    panels = [("training minutes", "benchmark: RandomMix 0-2 SR (%) (dashed: teacher)"),
+              ("frames (M)", "benchmark: RandomMix 0-2 SR (%) against frames"),
+              ("frames (M)", "benchmark: Ditch SR (%), levels 0-4"),
+              ("frames (M)", "benchmark: mean SR of the five categories (%)")]
+    for ax, (xlabel, title) in zip(axes, panels, strict=True):
+        ax.set_title(title, fontsize=9)
+        ax.set_xlabel(xlabel)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    return lines

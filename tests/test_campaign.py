@@ -5,7 +5,8 @@ from pathlib import Path
 
 import torch
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments"))
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "experiments"))
 from campaign import snapshots_to_score  # noqa: E402
 
 
@@ -20,3 +21,18 @@ def test_snapshots_fill_gaps_before_the_newest_scored_one(tmp_path) -> None:
     picked = [s["iteration"] for _, s in snapshots_to_score(tmp_path, rows, 10.0)]
     assert picked == [10, 30]  # 12 and 24 lie within 10 minutes of a scored one
     assert [s["iteration"] for _, s in snapshots_to_score(tmp_path, [], 10.0)] == [10, 30, 50]
+
+
+def test_a_comparison_of_scored_runs_sets_their_benchmarks_side_by_side(tmp_path) -> None:
+    """compare_runs adds the benchmark (RandomMix 0-2 and per category, the teacher's in
+    brackets) when every run has a bench.csv: the camera A/B (pitch 55 vs 30) was read
+    from walk tests alone before, which both cameras pass."""
+    from campaign import compare_runs
+
+    root = ROOT / "experiments/results/learn_student"
+    runs = [root / "h1-unified-s0-pitch55", root / "h1-unified-s0-pitch30"]
+    stem = compare_runs(runs, tmp_path / "ab", "s1", "a walk test")
+    table = stem.with_suffix(".md").read_text()
+    assert "| run | minutes | frames (M) | RandomMix 0-2 | randommix | ditch |" in table
+    assert "| h1-unified-s0-pitch55 | 36.0 | 1.31 | 62 (71) |" in table
+    assert stem.with_suffix(".png").stat().st_size > 20_000
