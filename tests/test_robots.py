@@ -96,7 +96,8 @@ def test_camera_at_head_sees_floor_ahead(name: str) -> None:
     cam_pos = data.cam_xpos[model.camera(CAMERA_NAME).id]
     assert cam_pos[2] > 0.75 * (info.nominal_base_height + 0.6 if name == "h1" else 1.2)
     forward = -data.cam_xmat[model.camera(CAMERA_NAME).id].reshape(3, 3)[:, 2]
-    assert forward[0] > 0.8 and forward[2] < 0  # looks forward and down
+    pitch = np.deg2rad(cfg.camera.pitch_deg)  # looks forward and down, by its pitch
+    assert forward[0] == pytest.approx(np.cos(pitch), abs=0.05) and forward[2] < 0
     depth = DepthRaycaster(model, cfg.camera.fovy_deg, 32, 24, far=10.0).render_camera(
         data, CAMERA_NAME)
     assert np.all(np.isfinite(depth))

@@ -207,8 +207,9 @@ def test_a_student_is_refused_through_another_camera(artefacts, tmp_path):
     in the same pixels, silently. Failed before: it loaded."""
     from legoh.policies.student import student_from_checkpoint
 
-    run = train_student(tiny("unified", artefacts), tmp_path / "a")
-    student_from_checkpoint(tiny("unified", artefacts), run.checkpoint)  # same camera: loads
+    at30 = "robot.camera.pitch_deg=30"
+    run = train_student(tiny("unified", artefacts, at30), tmp_path / "a")
+    student_from_checkpoint(tiny("unified", artefacts, at30), run.checkpoint)  # same: loads
     with pytest.raises(CheckpointError, match=r"robot.camera.pitch_deg=30.0, but this run has "
                                               r"robot.camera.pitch_deg=55.0"):
         student_from_checkpoint(tiny("unified", artefacts, "robot.camera.pitch_deg=55"),
@@ -222,7 +223,7 @@ def test_evaluation_sees_through_the_camera_the_student_learned_with(artefacts, 
     env built at 30 degrees. Failed before: refused (no for_checkpoint)."""
     from legoh.eval.cli import build_actor, for_checkpoint
 
-    run = train_student(tiny("unified", artefacts), tmp_path / "a")
+    run = train_student(tiny("unified", artefacts, "robot.camera.pitch_deg=30"), tmp_path / "a")
     cfg = tiny("unified", artefacts, "robot.camera.pitch_deg=55", "env.depth.far=4.0")
     own, path = for_checkpoint(cfg, str(run.checkpoint))
     assert own.robot.camera.pitch_deg == 30.0 and own.env.depth.far == 3.0
