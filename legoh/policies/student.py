@@ -120,11 +120,11 @@ SENSOR_KEYS = ("robot.camera.body", "robot.camera.pos", "robot.camera.pitch_deg"
                "env.depth.history", "env.depth.stride", "algo.depth_far")
 
 
-def check_sensors(cfg: DictConfig, path: str | Path, stored: dict) -> None:
-    """Refuse a depth student's checkpoint (its stored config ``stored``) trained with
-    another camera or depth setting than ``cfg``'s, naming the key and both values. A key
-    the checkpoint did not store (older runs) is not checked."""
-    stored_cfg, absent = OmegaConf.create(stored), object()
+def sensor_differences(cfg: DictConfig, stored: dict) -> list[tuple[str, object, object]]:
+    """``(key, the checkpoint's value, cfg's value)`` for each ``SENSOR_KEYS`` entry where
+    a student's stored config ``stored`` and ``cfg`` differ (keys it did not store, from
+    older runs, are skipped); lists compare as plain lists."""
+    stored_cfg, absent, out = OmegaConf.create(stored), object(), []
     for key in SENSOR_KEYS:
         have = OmegaConf.select(stored_cfg, key, default=absent)
         if have is absent:
@@ -133,9 +133,19 @@ def check_sensors(cfg: DictConfig, path: str | Path, stored: dict) -> None:
         if OmegaConf.is_config(have):  # a list (the camera's position)
             have, want = list(have), list(want)
         if have != want:
-            raise CheckpointError(f"{path} was trained with {key}={have}, but this run has "
-                                  f"{key}={want}: a student sees its depth only through the "
-                                  f"camera it learned with (pass {key}={have})")
+            out.append((key, have, want))
+    return out
+
+
+def check_sensors(cfg: DictConfig, path: str | Path, stored: dict) -> None:
+    """Refuse a depth student's checkpoint (its stored config ``stored``) trained with
+    another camera or depth setting than ``cfg``'s, naming the key and both values."""
+    differences = sensor_differences(cfg, stored)
+    if differences:
+        key, have, want = differences[0]
+        raise CheckpointError(f"{path} was trained with {key}={have}, but this run has "
+                              f"{key}={want}: a student sees its depth only through the "
+                              f"camera it learned with (pass {key}={have})")
 
 
 def sensors_from_checkpoint(cfg: DictConfig, path: str | Path) -> DictConfig:
@@ -143,22 +153,14 @@ def sensors_from_checkpoint(cfg: DictConfig, path: str | Path) -> DictConfig:
     was trained with, for using it (evaluation, play, export): a student sees only through
     the camera it learned with, so an old checkpoint stays usable when a default changes.
     Training from a checkpoint (resume) still refuses a mismatch (:func:`check_sensors`).
-    Prints the settings it changed; keys the checkpoint did not store stay as they are."""
-    stored = OmegaConf.create(load_checkpoint(path).get("config", {}))
-    absent, changed = object(), []
+    Prints the settings it changed."""
     cfg = cfg.copy()
-    for key in SENSOR_KEYS:
-        have = OmegaConf.select(stored, key, default=absent)
-        if have is absent:
-            continue
-        if OmegaConf.is_config(have):
-            have = list(have)
-        want = OmegaConf.select(cfg, key)
-        if (list(want) if OmegaConf.is_config(want) else want) != have:
-            OmegaConf.update(cfg, key, have, merge=False)
-            changed.append(f"{key}={have}")
+    changed = sensor_differences(cfg, load_checkpoint(path).get("config", {}))
+    for key, have, _ in changed:
+        OmegaConf.update(cfg, key, have, merge=False)
     if changed:
-        print(f"[legoh] {path}: the student's own sensors: {', '.join(changed)}")
+        print(f"[legoh] {path}: the student's own sensors: "
+              + ", ".join(f"{key}={have}" for key, have, _ in changed))
     return cfg
 
 
