@@ -52,7 +52,7 @@ RUNS = ROOT / "multirun" / "paper"  # the jobs' run folders (checkpoints: not co
 RECORD = (".hydra/config.yaml", "benchmark.csv", "benchmark_runs.csv", "train.csv")
 # Every job trains as learn_student's campaign does (the hike map, the hike reward preset and
 # its curriculum) and is scored on all five categories, levels 0-4; no video
-# the camera the committed jobs learned with (the H1 default became 55 degrees after them):
+# the camera the committed jobs learned with (the default became 55 degrees after them):
 # a new seed or table joins them through the same pixels
 RECIPE = ["trail=hike", "env.reward_preset=hike", *HIKE, "eval.levels=[0,1,2,3,4]",
           "video=false", "robot.camera.pitch_deg=30"]
