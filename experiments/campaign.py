@@ -293,11 +293,7 @@ def compare_runs(runs: list[Path], stem: Path, test: str, test_title: str) -> Pa
               ("frames (M)", f"({test}) the same against frames"),
               ("training minutes", "training: mean level"),
               ("training minutes", "training: falls / ended episodes (%)")]
-    for ax, (xlabel, title) in zip(axes, panels, strict=True):
-        ax.set_title(title, fontsize=9)
-        ax.set_xlabel(xlabel)
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=7)
+    label_panels(axes, panels)
     for ax in axes[:2]:
         ax.axhline(80, color="k", lw=0.5)
     if scored:
@@ -345,9 +341,14 @@ def bench_panels(axes, runs: list[Path], benches: list[list[dict]]) -> list[str]
               ("frames (M)", "benchmark: RandomMix 0-2 SR (%) against frames"),
               ("frames (M)", "benchmark: Ditch SR (%), levels 0-4"),
               ("frames (M)", "benchmark: mean SR of the five categories (%)")]
+    label_panels(axes, panels)
+    return lines
+
+
+def label_panels(axes, panels: list[tuple[str, str]]) -> None:
+    """Each axis its (x label, title) from ``panels``, a grid and a legend."""
     for ax, (xlabel, title) in zip(axes, panels, strict=True):
         ax.set_title(title, fontsize=9)
         ax.set_xlabel(xlabel)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
-    return lines
