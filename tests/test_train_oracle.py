@@ -332,3 +332,26 @@ def test_update_precision_auto_follows_the_cpu(monkeypatch) -> None:
     assert ppo.use_bfloat16("auto", "cpu") and not ppo.use_bfloat16("float32", "cpu")
     monkeypatch.setattr(ppo.Path, "read_text", lambda self: "fpu sse avx2 avx512f")
     assert not ppo.use_bfloat16("auto", "cpu") and ppo.use_bfloat16("bfloat16", "cpu")
+
+
+def test_a_batch_used_in_place_trains_as_a_copied_one(tmp_path: Path, monkeypatch) -> None:
+    """The in-process collector yields its own buffer (collect.py: no copy of each batch):
+    the same seed logs the same losses as torchrl's copying collector, over three batches."""
+    from torchrl.collectors import Collector
+
+    from legoh.train import collect
+
+    class Copying(Collector):  # torchrl's default: each batch a fresh copy
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **{**kwargs, "return_same_td": False})
+
+    logs = []
+    for k in range(2):
+        if k == 1:
+            monkeypatch.setattr(collect, "Collector", Copying)
+        run = train_oracle(compose_config(*TINY, "algo.total_frames=96"), tmp_path / str(k))
+        with run.csv.open() as f:
+            logs.append([{key: value for key, value in row.items()
+                          if not key.startswith(("time/", "frames_per_s"))}
+                         for row in csv.DictReader(f)])
+    assert len(logs[0]) == 3 and logs[0] == logs[1]

@@ -292,18 +292,32 @@ def test_every_sweep_composes_all_its_jobs(study):
     assert Path(CONF_DIR, "experiment", f"{study}.yaml").is_file()
 
 
-def test_same_seed_same_training(artefacts, tmp_path):
-    """Stage 2 is reproducible on the CPU: two runs of one config log the same losses."""
+def test_same_seed_same_training(artefacts, tmp_path, monkeypatch):
+    """Stage 2 is reproducible on the CPU: two runs of one config log the same losses; and
+    the collector yielding its own buffer in place (no copy of the batch, collect.py) trains
+    exactly as torchrl's copying default does, over three batches."""
     import csv
 
+    from torchrl.collectors import Collector
+
+    from legoh.train import collect
+
+    class Copying(Collector):  # torchrl's default: each batch a fresh copy
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **{**kwargs, "return_same_td": False})
+
     logs = []
-    for k in range(2):
-        run = train_student(tiny("unified", artefacts), tmp_path / str(k))
+    for k in range(3):
+        if k == 2:
+            monkeypatch.setattr(collect, "Collector", Copying)
+        run = train_student(tiny("unified", artefacts, "algo.total_frames=96"),
+                            tmp_path / str(k))
         with run.csv.open() as f:
             logs.append([{key: row[key] for key in row if not key.startswith(("time/",
                                                                              "frames_per_s"))}
                          for row in csv.DictReader(f)])
-    assert logs[0] == logs[1]
+    assert len(logs[0]) == 3
+    assert logs[0] == logs[1] == logs[2]
 
 
 def test_a_shipped_student_is_slim_and_checkpoint_pretrained_picks_it(artefacts, tmp_path,

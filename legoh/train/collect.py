@@ -130,7 +130,10 @@ def _make_local(cfg, make_env_fn, policy, frames_per_batch, total_frames, env, p
         return Collector(env, policy, frames_per_batch=frames_per_batch,
                          total_frames=total_frames,
                          auto_register_policy_transforms=False,  # the policies are stateless
-                         **devices)
+                         # yield the collector's own buffer, not a copy of it: each batch is
+                         # used up before the next is collected, and a student's batch
+                         # (depth frames) is ~190 MB to copy (0.07-1 s an iteration)
+                         return_same_td=True, **devices)
     collector = MultiSyncCollector(_worker_factories(make_env_fn, per_worker,
                                                      cfg.collector.workers, env), policy,
                                    frames_per_batch=frames_per_batch,
