@@ -353,26 +353,28 @@ def test_a_shipped_student_is_slim_and_checkpoint_pretrained_picks_it(artefacts,
 def test_update_precision_reaches_the_imitation_update(artefacts, tmp_path, monkeypatch,
                                                        precision, dtype):
     """algo.update_precision=bfloat16 runs the imitation forward passes (TC-ViTs, GRU, heads)
-    under bfloat16 autocast, with finite float32 losses. Failed before with: the TC-ViTs
-    re-run in float32 (only PPO followed the setting)."""
+    under bfloat16 autocast, with finite float32 losses, and the student acts with its
+    encoder in the same precision. Failed before with: the TC-ViTs re-run in float32 (only
+    PPO followed the setting); then with: the acting encoder in float32."""
     import csv
     import math
 
     from legoh.modules.tcvit import FactorisedViViT
 
-    seen = []
+    seen = {True: [], False: []}  # grad enabled: the imitation update; else the acting
     encode = FactorisedViViT.forward
 
     def spy(self, depth, terminus):
-        if torch.is_grad_enabled():  # the imitation update, not the acting
-            seen.append(torch.get_autocast_dtype("cpu") if torch.is_autocast_enabled("cpu")
-                        else torch.float32)
+        seen[torch.is_grad_enabled()].append(
+            torch.get_autocast_dtype("cpu") if torch.is_autocast_enabled("cpu")
+            else torch.float32)
         return encode(self, depth, terminus)
 
     monkeypatch.setattr(FactorisedViViT, "forward", spy)
     run = train_student(tiny("unified", artefacts, f"algo.update_precision={precision}"),
                         tmp_path)
-    assert seen and set(seen) == {dtype}
+    assert seen[True] and set(seen[True]) == {dtype}
+    assert seen[False] and set(seen[False]) == {dtype}
     with run.csv.open() as f:
         rows = list(csv.DictReader(f))
     assert all(math.isfinite(float(r["distill/loss_action"])) for r in rows)

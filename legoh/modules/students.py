@@ -25,6 +25,8 @@ them so the env resets them to zeros (a zero state is a fresh episode).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass
 
 import torch
@@ -276,6 +278,10 @@ class NavigationModule(TensorDictModuleBase):
     def __init__(self, navigator: Navigator) -> None:
         super().__init__()
         self.navigator = navigator
+        # the precision of the depth-rate step (``Navigator.frame``): a trainer sets it to
+        # its update's (``algo.update_precision``), so the student acts with the encoder
+        # in the precision it learns in; outputs are held in float32 either way
+        self.frame_precision: Callable[[], AbstractContextManager] = nullcontext
         extra = [keys.IS_INIT, keys.NAV_STATE, keys.NAV_HELD]
         if navigator.uses_depth:
             extra.append(keys.DEPTH_FRESH)
@@ -300,13 +306,17 @@ class NavigationModule(TensorDictModuleBase):
         fresh = start | td.get(keys.DEPTH_FRESH).reshape(-1) if nav.uses_depth else None
         features = td.get(keys.NAV_FEATURES, None)  # set by unroll, computed ahead
         if fresh is None or bool(fresh.all()):
-            held, state = nav.frame(obs, state, features)
+            with self.frame_precision():
+                new_held, new_state = nav.frame(obs, state, features)
+            held, state = new_held.to(held.dtype), new_state.to(state.dtype)
         elif bool(fresh.any()):
             rows = fresh.nonzero().squeeze(-1)
-            new_held, new_state = nav.frame({k: v[rows] for k, v in obs.items()}, state[rows],
-                                            None if features is None else features[rows])
-            held = held.index_copy(0, rows, new_held)
-            state = state.index_copy(0, rows, new_state)
+            with self.frame_precision():
+                new_held, new_state = nav.frame({k: v[rows] for k, v in obs.items()},
+                                                state[rows],
+                                                None if features is None else features[rows])
+            held = held.index_copy(0, rows, new_held.to(held.dtype))
+            state = state.index_copy(0, rows, new_state.to(state.dtype))
         out = nav.act(obs, held)
         batch = held.shape[0]
         zeros = held.new_zeros
