@@ -9,13 +9,15 @@ Per batch size N, in one run (these machines are noisy, so compare within a run)
               collected batch, in float32 and with ``algo.update_precision=bfloat16``
               (autocast);
   loop:       the real training loop (``train_oracle``), frames/s of its iterations after
-              the first, in two settings:
-                default: the default config (the lean update: 3 epochs, a 256-128-64 critic,
-                         update_precision=auto: bfloat16 on AMX / AVX512-BF16 CPUs),
-                         collection and update take turns in one process;
-                overlap: the default with ``collector.overlap=true``: the next batch is
-                         collected in a worker process while the learner updates (the
-                         lean loop of learn_walk; before 2026-12-03 "lean" here).
+              the first, in two settings of the default config (the lean update: 3
+              epochs, a 256-128-64 critic, update_precision=auto: bfloat16 on AMX /
+              AVX512-BF16 CPUs):
+                turns:   ``collector.overlap=false``: collection and update take turns in
+                         one process (the default until 2026-12-03, "default" in older
+                         results);
+                overlap: ``collector.overlap=true``: the next batch is collected in a
+                         worker process while the learner updates (the oracle's default
+                         since 2026-12-03 evening; "lean" before 2026-12-03).
 Then update variants at the largest N (epochs x minibatches, precision): what a cheaper
 update would buy. Writes experiments/results/bench_train.{md,json}.
 """
@@ -45,7 +47,7 @@ ROOT = Path(__file__).resolve().parents[1]
 BF16, F32 = "algo.update_precision=bfloat16", "algo.update_precision=float32"
 CRITIC256, CRITIC512 = "algo.critic_hidden=[256,128,64]", "algo.critic_hidden=[512,256,128]"
 EPOCHS3, EPOCHS5 = "algo.epochs=3", "algo.epochs=5"
-LOOPS = {"default": [], "overlap": ["collector.overlap=true"]}
+LOOPS = {"turns": ["collector.overlap=false"], "overlap": ["collector.overlap=true"]}
 OUT = ROOT / "experiments" / "results"
 
 
@@ -152,8 +154,10 @@ def main() -> None:  # noqa: PLR0915 - one measurement table after another
          "torch_threads": 1, "cpus": os.cpu_count(), "note": args.note}, indent=2))
     lines = ["# Oracle training loop vs its env (frames/s, one run, 1 torch thread, "
              f"{os.cpu_count()} CPUs)", "", *([args.note, ""] if args.note else []),
-             "default: the default config (the lean update, in-process collection); overlap = "
-             f"default + `{' '.join(LOOPS['overlap'])}`.", "",
+             "Loops of the default config (the lean update): turns = "
+             f"`{' '.join(LOOPS['turns'])}` (collection and update in turns, one process), "
+             f"overlap = `{' '.join(LOOPS['overlap'])}` (the oracle's default: the next batch "
+             "collected in a worker process during the update).", "",
              "| N | bare env | collection | update | update bf16 | "
              + " | ".join(f"{name} loop | / bare" for name in LOOPS) + " | update share |",
              "|---|---|---|---|---|" + "---|---|" * len(LOOPS) + "---|"]

@@ -16,7 +16,7 @@ from legoh import keys
 from legoh.envs.hiking_env import make_env
 from legoh.modules.actor_critic import LOC
 from legoh.policies.oracle import build_oracle
-from legoh.train.collect import envs_per_worker, make_collector, sync_weights
+from legoh.train.collect import envs_per_worker, make_collector, overlapped, sync_weights
 from legoh.train.oracle import train_oracle
 from tests.conftest import compose_config
 from tests.test_train_oracle import TINY
@@ -67,7 +67,18 @@ def collect_twice(*overrides: str) -> None:
 
 
 def test_in_process_collector_acts_with_the_learners_actor() -> None:
-    collect_twice()
+    collect_twice()  # TINY collects in turns (collector.overlap=false)
+
+
+def test_the_oracle_overlaps_by_default_and_students_do_not() -> None:
+    """collector.overlap=null: the stage decides (the oracle overlaps where it can: sync,
+    one worker, CPU); an explicit setting wins."""
+    assert overlapped(compose_config())
+    assert not overlapped(compose_config("algo=unified"))
+    assert not overlapped(compose_config("collector.workers=2"))
+    assert not overlapped(compose_config("collector=ray"))
+    assert not overlapped(compose_config("collector.overlap=false"))
+    assert overlapped(compose_config("algo=unified", "collector.overlap=true"))
 
 
 def test_two_local_processes_get_the_new_weights() -> None:

@@ -17,7 +17,7 @@ ROOT = Path(__file__).resolve().parents[1]
 TINY_RUN = ("trail=flat", "trail.levels=1", "trail.variants=1", "algo.num_envs=4",
             "algo.steps_per_env=8", "algo.epochs=1", "algo.minibatches=2",
             "algo.total_frames=320000", "algo.checkpoint_every=1000",
-            "algo.trajectory_every=1")
+            "algo.trajectory_every=1", "collector.overlap=false")  # as test_train_oracle's
 
 
 def start_run(out: Path, *overrides: str) -> subprocess.Popen:

@@ -16,9 +16,11 @@ from legoh.policies.oracle import build_oracle
 from legoh.train.oracle import train_oracle
 from tests.conftest import compose_config
 
+# collection and update in turns: the oracle's default overlap starts a worker process per
+# run (this file's tests 14 -> 49 s); test_collect.py runs the overlap itself
 TINY = ("trail=flat", "trail.levels=1", "trail.variants=1", "algo.num_envs=4",
         "algo.steps_per_env=8", "algo.epochs=2", "algo.minibatches=2",
-        "algo.checkpoint_every=1", "algo.trajectory_every=1")
+        "algo.checkpoint_every=1", "algo.trajectory_every=1", "collector.overlap=false")
 
 
 def test_tiny_run_end_to_end_writes_logs_and_checkpoint(tmp_path: Path) -> None:

@@ -66,6 +66,22 @@ def envs_per_worker(cfg: DictConfig) -> int:
     return num_envs // workers
 
 
+def overlapped(cfg: DictConfig) -> bool:
+    """Whether the run collects beside its update (``collector.overlap``; null: the stage's
+    default). The oracle overlaps when it can (``collector=sync``, one worker, the learner
+    on the CPU): its loop ran at 0.77-0.87 x the bare env at N = 256 against 0.62-0.70 in
+    turns (three idle runs, ``bench_train.md``), and its learn curves with the overlap
+    walked in the same frames (docs/oracle.md, attempts 7 and 9). Students do not: their
+    lagged batches leave PPO ~1 % of their rows (docs/unified.md, "Speed")."""
+    if cfg.collector.overlap is not None:
+        return bool(cfg.collector.overlap)
+    from legoh.config.algo import Stage
+
+    return (cfg.algo.stage == Stage.oracle and cfg.collector.name == "sync"
+            and int(cfg.collector.workers) == 1 and worker_policy_device(cfg).type == "cpu"
+            and policy_device(cfg).type == "cpu" and physics_device(cfg.sim) == "cpu")
+
+
 def make_collector(cfg: DictConfig, make_env_fn: Callable[[int], EnvBase], policy,
                    frames_per_batch: int, total_frames: int, env: EnvBase | None = None
                    ) -> BaseCollector | PipelinedCollector:
@@ -90,7 +106,7 @@ def make_collector(cfg: DictConfig, make_env_fn: Callable[[int], EnvBase], polic
         return _make_local(cfg, make_env_fn, policy, frames_per_batch, total_frames, env,
                            per_worker)
     if kind == "ray":
-        if cfg.collector.overlap:
+        if cfg.collector.overlap:  # set explicitly: a null never overlaps Ray
             raise ValueError("collector.overlap=true is for collector=sync (Ray actors already "
                              "collect apart from the learner)")
         return _make_ray(cfg, make_env_fn, policy, frames_per_batch, total_frames, per_worker,
@@ -113,7 +129,7 @@ def _make_local(cfg, make_env_fn, policy, frames_per_batch, total_frames, env, p
                 ) -> BaseCollector:
     devices = {"env_device": torch.device(physics_device(cfg.sim)),
                "policy_device": worker_policy_device(cfg)}
-    if cfg.collector.overlap:
+    if overlapped(cfg):
         # one worker process collects batch k+1 with the weights of update k-1 while the
         # learner runs update k: the envs and the update share the cores instead of taking
         # turns (bench_train.md: loop / bare env); a fixed lag, so a seed's run repeats

@@ -23,7 +23,7 @@ from legoh.objectives.ppo import make_ppo, ppo_update
 from legoh.policies.oracle import LEGACY_CRITIC, build_oracle, load_oracle_checkpoint
 from legoh.policies.pretrained import init_checkpoint
 from legoh.train.algorithm import Algorithm
-from legoh.train.collect import policy_device
+from legoh.train.collect import overlapped, policy_device
 from legoh.train.runner import OnPolicyRunner, Run, training_session
 
 
@@ -55,7 +55,7 @@ class OraclePPO(Algorithm):
         clock.append(time.perf_counter())
         flat = batch.reshape(-1)
         stats = ppo_update(self.loss, self.optimizers["ppo"], flat, self.algo, self.gen,
-                           exact_kl=True, lagged=bool(self.cfg.collector.overlap))
+                           exact_kl=True, lagged=overlapped(self.cfg))
         clock.append(time.perf_counter())
         adapt = adaptation_loss(self.models["adaptation"], self.actor, flat, self.gen)
         optim = self.optimizers["adaptation"]

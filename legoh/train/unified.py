@@ -36,7 +36,7 @@ from legoh.policies.student import (
     student_env_overrides,
 )
 from legoh.train.algorithm import Algorithm
-from legoh.train.collect import policy_device
+from legoh.train.collect import overlapped, policy_device
 from legoh.train.dagger import TeacherMix, student_rows, teacher_share
 from legoh.train.prior import make_prior, pretrain_prior, train_prior
 from legoh.train.runner import OnPolicyRunner, Run, training_session
@@ -107,7 +107,7 @@ class StudentDistillation(Algorithm):
             if acted.shape[0] >= algo.minibatches:
                 stats.update(ppo_update(self.loss, self.optimizers["ppo"], acted, algo, self.gen,
                                         scale=algo.weights.w1,
-                                        lagged=bool(self.cfg.collector.overlap)))
+                                        lagged=overlapped(self.cfg)))
         clock["ppo"] = time.perf_counter()
         stats.update(distill(self.student, batch, self.cfg, self.optimizers["distill"],
                              self.prior_loss, self.gen))
@@ -221,7 +221,7 @@ def train_student(cfg: DictConfig, out_dir: Path, resume: str | None = None,
     should score); returning True stops training with a checkpoint. Signals and
     ``resume_hint`` as for :func:`legoh.train.oracle.train_oracle`.
     """
-    if cfg.collector.overlap:
+    if overlapped(cfg):
         print("[legoh] collector.overlap=true with a student: stable under decoupled PPO, but "
               "its lagged batches leave PPO ~1-2 % of their rows (ESS in train.csv) and "
               "imitated worse in the measured runs (docs/unified.md, 'Speed')")
