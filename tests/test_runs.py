@@ -20,12 +20,14 @@ TINY_RUN = ("trail=flat", "trail.levels=1", "trail.variants=1", "algo.num_envs=4
             "algo.trajectory_every=1", "collector.overlap=false")  # as test_train_oracle's
 
 
-def start_run(out: Path, *overrides: str) -> subprocess.Popen:
-    """``python run.py`` in a subprocess (a real process to signal), output into ``out``."""
+def start_run(out: Path, *overrides: str, session: bool = False) -> subprocess.Popen:
+    """``python run.py`` in a subprocess (a real process to signal), output into ``out``;
+    ``session``: in a process group of its own (to signal it as a terminal does)."""
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
     return subprocess.Popen([sys.executable, "run.py", *TINY_RUN, *overrides,
                              f"hydra.run.dir={out}"], cwd=ROOT, env=env, text=True,
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                            start_new_session=session)
 
 
 def wait_for_rows(path: Path, rows: int, proc: subprocess.Popen, timeout: float = 240) -> None:
@@ -41,17 +43,28 @@ def wait_for_rows(path: Path, rows: int, proc: subprocess.Popen, timeout: float 
     pytest.fail("the run wrote no rows in time")
 
 
+@pytest.mark.parametrize("overlap", [False, True], ids=["turns", "overlap"])
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
-def test_a_signal_leaves_a_checkpoint_closed_logs_and_the_resume_command(tmp_path, sig):
+def test_a_signal_leaves_a_checkpoint_closed_logs_and_the_resume_command(tmp_path, sig,
+                                                                         overlap):
     """Ctrl-C (SIGINT) or SIGTERM mid-run: a final checkpoint at the last finished
     iteration, an MCAP the stock reader opens through its summary, the command to resume.
+    With the overlap (the oracle's default) the signal goes to the whole process group, as
+    a terminal's Ctrl-C or a job scheduler's SIGTERM does, collector worker included.
 
     Failed before with: SIGINT: KeyboardInterrupt traceback, no checkpoint (the periodic one
-    was 1000 iterations away), an MCAP without summary; SIGTERM: killed outright, the same."""
+    was 1000 iterations away), an MCAP without summary; SIGTERM: killed outright, the same.
+    Then, with the overlap: the worker died of the signal and the learner raised "the
+    collector worker died" (SIGINT) or ConnectionResetError reading its batch (SIGTERM)."""
     out = tmp_path / "run"
-    proc = start_run(out)
+    # 64 robots: the learner spends most of an iteration waiting for the worker's batch
+    proc = start_run(out, *(["collector.overlap=true", "algo.num_envs=64"] if overlap
+                            else []), session=overlap)
     wait_for_rows(out / "train.csv", 2, proc)
-    proc.send_signal(sig)
+    if overlap:
+        os.killpg(proc.pid, sig)
+    else:
+        proc.send_signal(sig)
     text, _ = proc.communicate(timeout=120)
     assert proc.returncode == 128 + sig, text
     with (out / "train.csv").open() as f:

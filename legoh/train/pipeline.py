@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import io
 import queue
+import signal
 import traceback
 from collections.abc import Callable, Iterator
 
@@ -28,6 +29,8 @@ from torchrl.collectors import Collector
 from torchrl.envs import EnvBase
 
 POLL_S = 1.0  # how often a waiting learner checks that the worker is still alive
+GRACE_S = 30.0  # a worker stopped mid-batch keeps its sent batch readable this long
+STOPPED = (-signal.SIGTERM, 128 + signal.SIGTERM)  # the worker's exit codes after a SIGTERM
 
 
 class PipelinedCollector:
@@ -68,17 +71,26 @@ class PipelinedCollector:
         frames = 0
         while frames < self.total_frames:
             batch = self._next()
+            if batch is None:  # the worker was stopped by a signal: no more batches
+                return
             frames += batch.numel()
             if frames < self.total_frames:
                 self._request()  # collected while the learner updates on this one
             yield batch
 
-    def _next(self) -> TensorDictBase:
+    def _next(self) -> TensorDictBase | None:
+        """The next batch; None when a SIGTERM stopped the worker (a job scheduler signals
+        every process of a job: the learner's own handler then ends the run with a
+        checkpoint, ``legoh.runs.GracefulStop``)."""
         while True:
             try:
                 kind, item = self._batches.get(timeout=POLL_S)
             except queue.Empty:
                 if not self._proc.is_alive():
+                    if self._proc.exitcode in STOPPED:
+                        print("[legoh] the collector worker was stopped by SIGTERM: no more "
+                              "batches", flush=True)
+                        return None
                     raise RuntimeError(f"the collector worker died (exit code "
                                        f"{self._proc.exitcode}) before sending a batch") from None
                 continue
@@ -99,9 +111,29 @@ class PipelinedCollector:
             q.close()
 
 
+class _Term:
+    """SIGTERM in the worker (a job scheduler signals every process of a job): between
+    batches it leaves at once; mid-batch it finishes and sends the batch first, since the
+    learner may be reading it (its tensors travel as file descriptors this process must
+    keep open until they are received), then leaves (``_collect``)."""
+
+    def __init__(self) -> None:
+        self.busy = self.pending = False
+
+    def __call__(self, signum: int, frame: object) -> None:
+        if not self.busy:
+            raise SystemExit(128 + signum)
+        self.pending = True
+
+
 def _collect(env_factory, policy_bytes: bytes, frames_per_batch: int, seed: int, env_device,
              policy_device, threads: int, weights: mp.Queue, batches: mp.Queue) -> None:
     """The worker: for each request (the learner's weights), one batch; ``None``: stop."""
+    # a terminal's Ctrl-C reaches every process of the group: the learner decides when to
+    # stop (after its iteration, with a checkpoint) and then stops this worker
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    term = _Term()
+    signal.signal(signal.SIGTERM, term)
     try:
         policy = torch.load(io.BytesIO(policy_bytes), weights_only=False)  # our own module
         torch.set_num_threads(threads)
@@ -112,8 +144,16 @@ def _collect(env_factory, policy_bytes: bytes, frames_per_batch: int, seed: int,
         collector.set_seed(seed)
         stream = iter(collector)
         while (state := weights.get()) is not None:
+            term.busy = True
             policy.load_state_dict(state)
             batches.put(("batch", next(stream)))
+            term.busy = False
+            if term.pending:  # the learner may be reading the batch: give it time, then go
+                try:
+                    weights.get(timeout=GRACE_S)
+                except queue.Empty:
+                    pass
+                raise SystemExit(128 + signal.SIGTERM)
         collector.shutdown()
     except Exception:  # noqa: BLE001 - the learner re-raises it with the traceback
         batches.put(("error", traceback.format_exc()))
