@@ -25,3 +25,18 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 @pytest.fixture
 def update_snapshots(request: pytest.FixtureRequest) -> bool:
     return bool(request.config.getoption("--update-snapshots"))
+
+
+@pytest.fixture
+def copying_collector(monkeypatch) -> None:
+    """From now on the in-process collector is torchrl's default, which yields a fresh copy
+    of each batch (legoh's yields its own buffer: ``train/collect.py``)."""
+    from torchrl.collectors import Collector
+
+    from legoh.train import collect
+
+    class Copying(Collector):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **{**kwargs, "return_same_td": False})
+
+    monkeypatch.setattr(collect, "Collector", Copying)

@@ -336,21 +336,13 @@ def test_update_precision_auto_follows_the_cpu(monkeypatch) -> None:
     assert not ppo.use_bfloat16("auto", "cpu") and ppo.use_bfloat16("bfloat16", "cpu")
 
 
-def test_a_batch_used_in_place_trains_as_a_copied_one(tmp_path: Path, monkeypatch) -> None:
+def test_a_batch_used_in_place_trains_as_a_copied_one(tmp_path: Path, request) -> None:
     """The in-process collector yields its own buffer (collect.py: no copy of each batch):
     the same seed logs the same losses as torchrl's copying collector, over three batches."""
-    from torchrl.collectors import Collector
-
-    from legoh.train import collect
-
-    class Copying(Collector):  # torchrl's default: each batch a fresh copy
-        def __init__(self, *args, **kwargs):
-            super().__init__(*args, **{**kwargs, "return_same_td": False})
-
     logs = []
     for k in range(2):
         if k == 1:
-            monkeypatch.setattr(collect, "Collector", Copying)
+            request.getfixturevalue("copying_collector")
         run = train_oracle(compose_config(*TINY, "algo.total_frames=96"), tmp_path / str(k))
         with run.csv.open() as f:
             logs.append([{key: value for key, value in row.items()

@@ -292,24 +292,16 @@ def test_every_sweep_composes_all_its_jobs(study):
     assert Path(CONF_DIR, "experiment", f"{study}.yaml").is_file()
 
 
-def test_same_seed_same_training(artefacts, tmp_path, monkeypatch):
+def test_same_seed_same_training(artefacts, tmp_path, request):
     """Stage 2 is reproducible on the CPU: two runs of one config log the same losses; and
     the collector yielding its own buffer in place (no copy of the batch, collect.py) trains
     exactly as torchrl's copying default does, over three batches."""
     import csv
 
-    from torchrl.collectors import Collector
-
-    from legoh.train import collect
-
-    class Copying(Collector):  # torchrl's default: each batch a fresh copy
-        def __init__(self, *args, **kwargs):
-            super().__init__(*args, **{**kwargs, "return_same_td": False})
-
     logs = []
     for k in range(3):
         if k == 2:
-            monkeypatch.setattr(collect, "Collector", Copying)
+            request.getfixturevalue("copying_collector")
         run = train_student(tiny("unified", artefacts, "algo.total_frames=96"),
                             tmp_path / str(k))
         with run.csv.open() as f:
