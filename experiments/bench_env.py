@@ -5,6 +5,8 @@ For H1 and G1 on RandomMix level 2 and N in {16, 64, 256}:
     holding the default pose (no observations, rewards or resets);
   * HikingEnv without depth and with depth (10 Hz: a frame every 5 policy steps), random
     actions through the public ``env.step`` / ``step_and_maybe_reset`` path;
+  * HikingEnv with ``env.compile=true``, random actions and holding the default pose (the
+    ceiling's own motion);
   * depth cost: the env's camera (``env.depth.backend``; the ``raycast`` keys are its cost,
     experiments/bench_depth.py compares the backends) vs MuJoCo's EGL renderer, per frame;
   * peers: gymnasium's Humanoid-v5 and torchrl's ``HumanoidEnv`` (MuJoCo C backend), one env.
@@ -62,8 +64,10 @@ def compose_cfg(robot: str, depth: bool, extra: list[str] | None = None):
 
 
 def env_rate(robot: str, n: int, depth: bool, steps: int, scene=None,
-             extra: list[str] | None = None) -> tuple[float, object]:
-    """Policy steps/s of HikingEnv at level 2 with random actions (resets included)."""
+             extra: list[str] | None = None, hold: bool = False) -> tuple[float, object]:
+    """Policy steps/s of HikingEnv at level 2 with random actions (resets included), or
+    (``hold``) zero actions: the default pose held, the ceiling's own motion. The env's
+    ``compile_s``: seconds of its first reset and step (``env.compile``'s graphs)."""
     cfg = compose_cfg(robot, depth, extra)
     if scene is None:
         env = make_env(cfg, num_envs=n)
@@ -73,13 +77,17 @@ def env_rate(robot: str, n: int, depth: bool, steps: int, scene=None,
                         OmegaConf.to_object(cfg.env), OmegaConf.to_object(cfg.sim), n, seed=0,
                         scene=scene)
     env.set_level(LEVEL)
+    t0 = time.perf_counter()
     td = env.reset()
     gen = torch.Generator().manual_seed(0)
     timer = PhysicsTimer.attach(env)
     for i in range(steps + 5):
+        if i == 1:
+            env.compile_s = time.perf_counter() - t0
         if i == 5:
             t0, timer.seconds = time.perf_counter(), 0.0
-        td["action"] = (torch.randn(n, env.num_actions, generator=gen) * 0.5).to(env.device)
+        noise = 0.0 if hold else 0.5
+        td["action"] = (torch.randn(n, env.num_actions, generator=gen) * noise).to(env.device)
         _, td = env.step_and_maybe_reset(td)
     wall = time.perf_counter() - t0
     env.physics_share = timer.seconds / wall  # read by cpu_benchmark
@@ -305,6 +313,13 @@ def cpu_benchmark(args: argparse.Namespace) -> None:
             rate_env, env = env_rate(robot, n, depth=False, steps=steps)
             rate_ceiling = ceiling_rate(env, steps)
             env.close()
+            # env.compile: the step's and the reset's derivations as one graph each
+            rate_comp, cenv = env_rate(robot, n, False, steps, scene=env.scene,
+                                       extra=["env.compile=true"])
+            cenv.close()
+            rate_hold, henv = env_rate(robot, n, False, steps, scene=env.scene,
+                                       extra=["env.compile=true"], hold=True)
+            henv.close()
             rate_depth, denv = env_rate(robot, n, depth=True, steps=steps,
                                         scene=env.scene)
             cost = depth_cost(denv, frames=3)
@@ -324,6 +339,12 @@ def cpu_benchmark(args: argparse.Namespace) -> None:
                 "env_depth_steps_per_s": rate_depth,
                 "env_over_ceiling": rate_env / rate_ceiling,
                 "env_physics_share": env.physics_share, "env_outside_ms": env.outside_ms,
+                "compiled_steps_per_s": rate_comp,
+                "compiled_over_ceiling": rate_comp / rate_ceiling,
+                "compiled_outside_ms": cenv.outside_ms, "compile_s": cenv.compile_s,
+                "compiled_hold_steps_per_s": rate_hold,
+                "compiled_hold_over_ceiling": rate_hold / rate_ceiling,
+                "compiled_hold_outside_ms": henv.outside_ms,
                 "depth_env_over_ceiling": rate_depth / rate_ceiling,
                 "depth_10hz_over_physics": depth_s / physics_s,
                 **cost,
@@ -332,7 +353,10 @@ def cpu_benchmark(args: argparse.Namespace) -> None:
             rows.append(row)
             print(f"{robot} N={n:4d}: ceiling {rate_ceiling:8.0f}  env {rate_env:8.0f} "
                   f"({row['env_over_ceiling']:.0%}; its physics {env.physics_share:.0%}, "
-                  f"{env.outside_ms:.1f} ms a step outside)  env+depth {rate_depth:8.0f} "
+                  f"{env.outside_ms:.1f} ms a step outside)  compiled {rate_comp:8.0f} "
+                  f"({row['compiled_over_ceiling']:.0%}, {cenv.outside_ms:.1f} ms; "
+                  f"holding the pose {row['compiled_hold_over_ceiling']:.0%}, "
+                  f"compiling {cenv.compile_s:.0f} s)  env+depth {rate_depth:8.0f} "
                   f"({row['depth_env_over_ceiling']:.0%})  depth@10Hz/physics "
                   f"{row['depth_10hz_over_physics']:.2f}  EGL/raycast "
                   f"{row['egl_over_raycast']:.2f}")
@@ -375,6 +399,24 @@ def write_results(result: dict, quick: bool, results: Path = RESULTS) -> None:
             f"{r.get('env_outside_ms', float('nan')):.1f} | "
             f"{r['env_depth_steps_per_s']:.0f} | {r['depth_env_over_ceiling']:.0%} | "
             f"{r['depth_10hz_over_physics']:.2f} | {r['egl_over_raycast']:.2f} |")
+    if any("compiled_steps_per_s" in r for r in result["rows"]):
+        lines += ["", "With `env.compile=true` (a step's and a reset's derivations from the "
+                  "physics as one torch.compile graph each; the eager env above). Random "
+                  "actions as above, and holding the default pose (zero actions: the "
+                  "ceiling's own motion, so env / ceiling counts only the work around the "
+                  "physics). Compiling: seconds of the first reset and step (the inductor's "
+                  "cache, warm or cold, decides most of it).", "",
+                  "| robot | N | ceiling | compiled env | / ceiling | outside (ms/step) "
+                  "| holding the pose | / ceiling | outside (ms/step) | compiling (s) |",
+                  "|---|---|---|---|---|---|---|---|---|---|"]
+        for r in result["rows"]:
+            if "compiled_steps_per_s" in r:
+                lines.append(
+                    f"| {r['robot']} | {r['num_envs']} | {r['ceiling_steps_per_s']:.0f} | "
+                    f"{r['compiled_steps_per_s']:.0f} | {r['compiled_over_ceiling']:.0%} | "
+                    f"{r['compiled_outside_ms']:.1f} | {r['compiled_hold_steps_per_s']:.0f} | "
+                    f"{r['compiled_hold_over_ceiling']:.0%} | "
+                    f"{r['compiled_hold_outside_ms']:.1f} | {r['compile_s']:.0f} |")
     lines += ["", "Depth cost by resolution at N=64 (ray cast, seconds per frame per env; "
               "physics: seconds per policy step per env from the ceiling):", "",
               "| robot | 32x24 | 48x36 | 64x48 | physics per step |", "|---|---|---|---|---|"]

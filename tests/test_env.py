@@ -121,6 +121,35 @@ def test_same_seed_same_observations(make: EnvFactory) -> None:
         assert torch.equal(a[key], b[key]), key
 
 
+def test_compiled_step_equals_the_eager_one(make: EnvFactory, monkeypatch) -> None:
+    """``env.compile`` traces a step's and a reset's derivations into one graph each
+    (fullgraph: a term that breaks the graph fails here) with the same state, bookkeeping,
+    rewards and observations as the eager env, resets included. The aot_eager backend
+    runs the traced graph with torch's own kernels (the inductor's C++ build is what
+    experiments/bench_env.py times)."""
+    import functools
+
+    monkeypatch.setattr(torch, "compile", functools.partial(torch.compile, backend="aot_eager"))
+    torch._dynamo.reset()
+    eager, compiled = make(3, seed=5), make(3, seed=5, compile=True)
+    assert compiled._after_step is not compiled._derive_step
+    a, b = rollout(eager, 120), rollout(compiled, 120)
+    assert a["next", keys.DONE].any()  # the reset graph ran too
+    for key in a.keys(True, True):
+        torch.testing.assert_close(a[key], b[key], rtol=1e-6, atol=1e-6, msg=str(key))
+    torch.testing.assert_close(eager.episode_metres, compiled.episode_metres)
+    torch.testing.assert_close(eager.goals.index, compiled.goals.index)
+
+
+def test_compile_without_a_cpp_compiler_is_refused_naming_the_key(make: EnvFactory,
+                                                                  monkeypatch) -> None:
+    import torch._inductor.config as inductor
+
+    monkeypatch.setattr(inductor.cpp, "cxx", (None, "/nonexistent/g++"))
+    with pytest.raises(RuntimeError, match="env.compile=false"):
+        make(2, compile=True)
+
+
 def test_different_seed_different_observations(make: EnvFactory) -> None:
     a, b = rollout(make(2, seed=3), 20), rollout(make(2, seed=4), 20)
     assert not torch.equal(a["next", "obs", "proprio"], b["next", "obs", "proprio"])

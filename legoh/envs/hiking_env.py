@@ -92,6 +92,12 @@ class HikingEnv(EnvBase):
         # truncated envs skips them (one reset per diverged episode, not two)
         self._diverged = torch.zeros(self.num_envs, dtype=torch.bool, device=self.device)
         self._make_specs()
+        # what a step and a reset derive from the physics: eager, or one compiled graph each
+        self._after_step, self._after_reset = self._derive_step, self._derive_reset
+        if env.compile:
+            _check_compiler(self.device)
+            self._after_step = torch.compile(self._derive_step, dynamic=False, fullgraph=True)
+            self._after_reset = torch.compile(self._derive_reset, dynamic=False, fullgraph=True)
 
     # ----------------------------------------------------------------- set-up
     def _constants(self, robot: RobotConfig) -> None:
@@ -144,6 +150,9 @@ class HikingEnv(EnvBase):
         self.stateful = [self.action_delay, self.memory, self.air_time, self.goals,
                          self.nav_progress, self.command, self.history]
         self.observation_terms = observations.observation_table(self)
+        # the terms of the state alone, computed with it by _derive_step and _derive_reset
+        self.state_terms = [k for k in self.observation_terms
+                            if k not in observations.AFTER_STATE_TERMS]
         self.reward_parts = {k: torch.zeros(n, device=dev) for k in self.reward_terms}
 
     def _make_specs(self) -> None:
@@ -174,9 +183,15 @@ class HikingEnv(EnvBase):
         ids = fresh.nonzero().squeeze(1)
         if len(ids):
             self._reset_envs(ids)
+        terms = self._after_reset(fresh)
+        return self._observe(self._no_flags(torch.zeros_like(fresh)), terms)
+
+    def _derive_reset(self, fresh: torch.Tensor) -> dict:
+        """The state after a reset (``fresh`` (N,) bool: the envs reset) and the
+        observation terms of the state alone."""
         self.state = compute_state(self)
         self.state.advance = fresh  # only reset envs get a new history entry
-        return self._observe(self._no_flags(torch.zeros_like(fresh)))
+        return self._state_terms()
 
     def _no_flags(self, none: torch.Tensor) -> dict[str, torch.Tensor]:
         """The info flags of a step that ended nothing (``none``: (N,) False)."""
@@ -212,22 +227,30 @@ class HikingEnv(EnvBase):
         self.global_steps += 1
         self.randomization.step()
         diverged = self._handle_divergence(time_before)
-        s = self.state = compute_state(self, action)
-        self.episode_metres += s.path_progress * self.dt
-        ends = check_terminations(self.terminations, self, s, diverged)
-        s.failed = self.fell_last = ends.failed
-        reward, self.reward_parts = rewards.compute_rewards(s, self.reward_terms,
-                                                            self.only_positive)
-        self.memory.update(s)
+        ends, reward, self.reward_parts, terms = self._after_step(action, diverged)
+        self.fell_last = ends.failed
         self.frame_clock += 1
         due = self.depth_cam is not None and self.frame_clock % self.cfg.depth.every == 0
         self.depth.push(self.depth.render(self) if due else None)
-        out = self._observe({**ends.flags, "diverged": diverged})
+        out = self._observe({**ends.flags, "diverged": diverged}, terms)
         out.set(keys.REWARD, reward.float().unsqueeze(-1))
         out.set(keys.TERMINATED, ends.terminated.unsqueeze(-1))
         out.set(keys.TRUNCATED, ends.truncated.unsqueeze(-1))
         out.set(keys.DONE, (ends.terminated | ends.truncated).unsqueeze(-1))
         return out
+
+    def _derive_step(self, action: torch.Tensor, diverged: torch.Tensor) -> tuple:
+        """What a step derives from the physics, pure torch on the env's tensors (one graph
+        under ``env.compile``): the state, the termination table, the rewards, the
+        bookkeeping, the observation terms of the state alone. Returns (ends, reward, reward parts,
+        terms)."""
+        s = self.state = compute_state(self, action)
+        self.episode_metres += s.path_progress * self.dt
+        ends = check_terminations(self.terminations, self, s, diverged)
+        s.failed = ends.failed
+        reward, parts = rewards.compute_rewards(s, self.reward_terms, self.only_positive)
+        self.memory.update(s)
+        return ends, reward, parts, self._state_terms()
 
     def _handle_divergence(self, time_before: torch.Tensor) -> torch.Tensor:
         """Envs whose state went non-finite or exploded are reset and counted. MuJoCo itself
@@ -245,20 +268,31 @@ class HikingEnv(EnvBase):
         return bad
 
     # ----------------------------------------------------------------- observations
-    def _observe(self, flags: dict[str, torch.Tensor]) -> TensorDict:
-        """Every observation term of the table on ``self.state``, plus the termination
-        flags as info signals; copies, as float32 (buffers change in place)."""
+    def _state_terms(self) -> dict:
+        """The terms of ``self.state`` alone (``self.state_terms``), as observed."""
+        out: dict = {}
+        for key in self.state_terms:
+            out[key] = _observed(self.observation_terms[key](self, out))
+        return out
+
+    def _observe(self, flags: dict[str, torch.Tensor], terms: dict | None = None
+                 ) -> TensorDict:
+        """Every observation term of the table on ``self.state`` (those in ``terms``
+        already computed), plus the termination flags as info signals; copies, as float32
+        (buffers change in place)."""
         out: dict = {}
         for key, fn in self.observation_terms.items():
-            value = fn(self, out)
-            out[key] = (value if isinstance(value, TensorDictBase)
-                        else value.to(torch.float32 if value.is_floating_point()
-                                      else value.dtype, copy=True))
+            out[key] = terms[key] if terms and key in terms else _observed(fn(self, out))
         nested: dict[str, dict] = {}
         for (group, name), value in out.items():
             nested.setdefault(group, {})[name] = value
         nested[keys.INFO].update({name: flag.clone() for name, flag in flags.items()})
-        return TensorDict(nested, batch_size=[self.num_envs], device=self.device)
+        # built without tensordict's per-leaf checks (~1 ms a step at N = 64): every value
+        # is the env's own, on its device, batch first (the spec test checks the shapes)
+        batch, dev = torch.Size([self.num_envs]), self.device
+        return TensorDict._new_unsafe(
+            {group: TensorDict._new_unsafe(values, batch_size=batch, device=dev)
+             for group, values in nested.items()}, batch_size=batch, device=dev)
 
     # ----------------------------------------------------------------- curriculum state
     def curriculum_state(self) -> dict:
@@ -291,6 +325,29 @@ class HikingEnv(EnvBase):
         """Stop the physics."""
         self.sim.close()
         super().close(**kwargs)
+
+
+def _check_compiler(device: torch.device) -> None:
+    """``env.compile`` on the CPU builds C++ kernels: refuse at once, not at the first step,
+    where no compiler works."""
+    if torch.device(device).type != "cpu":
+        return
+    from torch._inductor.cpp_builder import get_cpp_compiler
+
+    try:
+        get_cpp_compiler()
+    except Exception as err:
+        raise RuntimeError(f"env.compile=true on the CPU needs a C++ compiler for "
+                           f"torch.compile ({err}); install g++ (or set CXX) or run with "
+                           "env.compile=false") from err
+
+
+def _observed(value):
+    """A term's value as observed: a float32 (or its own integer/bool dtype) copy, since
+    the env's buffers change in place; a nested TensorDict as it is."""
+    if isinstance(value, TensorDictBase):
+        return value
+    return value.to(torch.float32 if value.is_floating_point() else value.dtype, copy=True)
 
 
 def make_env(cfg, num_envs: int, evaluation: bool = False, **overrides) -> HikingEnv:

@@ -224,6 +224,13 @@ def info_terms() -> dict[tuple[str, str], ObsFn]:
     }
 
 
+# Terms computed after the state's (the env's ``state_terms`` are the others, in one
+# compiled graph under ``env.compile``): depth frames come from the step's render, the
+# randomisation signal reads Python counters, the reward terms are a nested TensorDict.
+AFTER_STATE_TERMS = frozenset({keys.DEPTH, keys.DEPTH_FRESH, keys.RANDOMIZATION,
+                               keys.REWARD_TERMS})
+
+
 def observation_table(env) -> dict[tuple[str, str], ObsFn]:
     """The observation terms of ``env``'s config, in evaluation order."""
     table: dict[tuple[str, str], ObsFn] = {
