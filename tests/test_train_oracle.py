@@ -138,20 +138,21 @@ def test_ppo_loss_falls_on_a_fixed_batch() -> None:
     advantage = data["advantage"].reshape(-1)
     advantage = (advantage - advantage.mean()) / advantage.std()
 
-    def surrogate() -> float:
-        """Advantage-weighted log-likelihood of the taken actions: what PPO pushes up."""
+    def log_prob() -> torch.Tensor:
         with torch.no_grad():
-            log_prob = actor.get_dist(data.clone()).log_prob(data["action"])
-        return float((log_prob.reshape(-1) * advantage).mean())
+            return actor.get_dist(data.clone()).log_prob(data["action"]).reshape(-1)
 
-    before, gain_before = losses(), surrogate()
+    before, log_prob_before = losses(), log_prob()
     algo = cfg.algo.copy()
     algo.desired_kl = 0.0  # a fixed learning rate: this test is about the loss going down
     algo.epochs, algo.minibatches = 5, 4
     ppo_update(loss, optimizer, data, algo, torch.Generator().manual_seed(0))
     after = losses()
     assert after["loss_critic"] < before["loss_critic"]
-    assert surrogate() > gain_before
+    # what PPO pushes up: the advantage-weighted change of the taken actions' log-likelihood
+    # (per sample first: the mean of log_prob x advantage itself is ~1e-7 and its change
+    # below float32's resolution on some CPUs)
+    assert float(((log_prob() - log_prob_before) * advantage).mean()) > 0
 
 
 def test_adaptive_learning_rate_rule() -> None:
