@@ -258,8 +258,8 @@ class EnvConfig:
     spawn_remaining: list[float] | None = None
     divergence_qvel: float = 1.0e3  # |qvel| above this counts as a diverged simulation
     # torch.compile what a step derives from the physics (state, terminations, rewards,
-    # the obs group's terms) into one graph per env: ~5x fewer milliseconds outside
-    # the physics, ~30-60 s of compiling at the first step and first reset (a C++
+    # the state's observation terms) into one graph per env: about half the milliseconds
+    # outside the physics, ~30-40 s of compiling at the first step and first reset (a C++
     # compiler on the CPU; docs/env.md, experiments/bench_env.py)
     compile: bool = False
     # reward preset (REWARD_PRESETS): hike (default) | walk (learn_walk's flat-ground recipe:
