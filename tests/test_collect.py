@@ -201,3 +201,34 @@ def test_overlap_takes_one_worker() -> None:
     env = make_env(cfg, num_envs=NUM_ENVS)
     with pytest.raises(ValueError, match="collector.overlap"):
         make_collector(cfg, functools.partial(make_env, cfg), None, 16, 32, env=env)
+
+
+def test_a_sigterm_between_batches_keeps_the_sent_batch_readable() -> None:
+    """A job scheduler's SIGTERM reaches the overlap's worker after it sent a batch the
+    learner has not read yet (the learner is updating). The worker stays until the learner
+    takes it, then leaves by SIGTERM's exit code.
+
+    Failed before with FileNotFoundError in the learner's read: the worker left at once and
+    took the batch's file descriptors with it (seen in CI, test_runs' signal test)."""
+    import os
+    import signal
+    import time
+
+    cfg = compose_config(*TINY, "collector.overlap=true")
+    env = make_env(cfg, num_envs=NUM_ENVS)
+    torch.manual_seed(0)
+    _, actor, _, _ = build_oracle(env, cfg)
+    frames = NUM_ENVS * STEPS
+    collector = make_collector(cfg, functools.partial(make_env, cfg), actor, frames, 2 * frames,
+                               env=env)
+    try:
+        time.sleep(15.0)  # batch 0 is collected and sent; the worker waits for a request
+        os.kill(collector._proc.pid, signal.SIGTERM)
+        time.sleep(3.0)
+        batch = next(iter(collector))
+        assert batch.numel() == frames
+        collector._proc.join(timeout=10.0)
+        assert collector._proc.exitcode == 128 + signal.SIGTERM
+    finally:
+        collector.shutdown()
+        env.close()

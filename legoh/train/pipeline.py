@@ -19,6 +19,7 @@ from __future__ import annotations
 import io
 import queue
 import signal
+import time
 import traceback
 from collections.abc import Callable, Iterator
 
@@ -112,18 +113,35 @@ class PipelinedCollector:
 
 
 class _Term:
-    """SIGTERM in the worker (a job scheduler signals every process of a job): between
-    batches it leaves at once; mid-batch it finishes and sends the batch first, since the
-    learner may be reading it (its tensors travel as file descriptors this process must
-    keep open until they are received), then leaves (``_collect``)."""
+    """SIGTERM in the worker (a job scheduler signals every process of a job): before its
+    first batch it leaves at once; after, it leaves once the learner has taken the batch
+    it last sent (the learner's next request says so) or ``GRACE_S`` after the signal,
+    finishing a batch it is collecting first, since the learner may be reading that batch
+    (its tensors travel as file descriptors this process must keep open until they are
+    received: leaving earlier failed the learner's read, FileNotFoundError)."""
 
     def __init__(self) -> None:
         self.busy = self.pending = False
+        self.since = 0.0
 
     def __call__(self, signum: int, frame: object) -> None:
         if not self.busy:
             raise SystemExit(128 + signum)
-        self.pending = True
+        self.pending, self.since = True, time.monotonic()
+
+    def request(self, weights: mp.Queue):
+        """The learner's next request (its weights; None: stop), or SystemExit once a
+        SIGTERM came and the last batch sent was taken or its grace ran out."""
+        while True:
+            try:
+                state = weights.get(timeout=POLL_S)
+            except queue.Empty:
+                if self.pending and time.monotonic() - self.since > GRACE_S:
+                    raise SystemExit(128 + signal.SIGTERM) from None
+                continue
+            if self.pending:  # the learner took the last batch: nothing left to keep
+                raise SystemExit(128 + signal.SIGTERM)
+            return state
 
 
 def _collect(env_factory, policy_bytes: bytes, frames_per_batch: int, seed: int, env_device,
@@ -143,17 +161,10 @@ def _collect(env_factory, policy_bytes: bytes, frames_per_batch: int, seed: int,
                               env_device=env_device, policy_device=policy_device)
         collector.set_seed(seed)
         stream = iter(collector)
-        while (state := weights.get()) is not None:
-            term.busy = True
+        while (state := term.request(weights)) is not None:
+            term.busy = True  # from here a batch is collected or sent, maybe not yet read
             policy.load_state_dict(state)
             batches.put(("batch", next(stream)))
-            term.busy = False
-            if term.pending:  # the learner may be reading the batch: give it time, then go
-                try:
-                    weights.get(timeout=GRACE_S)
-                except queue.Empty:
-                    pass
-                raise SystemExit(128 + signal.SIGTERM)
         collector.shutdown()
     except Exception:  # noqa: BLE001 - the learner re-raises it with the traceback
         batches.put(("error", traceback.format_exc()))
