@@ -481,6 +481,26 @@ def test_curriculum_zero_expected_distance() -> None:
     np.testing.assert_array_equal(new, [0])
 
 
+def test_uniform_rule_draws_every_level_whatever_the_episode_did(make: EnvFactory) -> None:
+    """``env.curriculum.rule=uniform`` (a student's): robots standing still at their spawn
+    (covered 0: the distance rule keeps level 0) draw their next level over all levels."""
+    from legoh.config.env import CurriculumConfig, LevelRule
+    from legoh.envs.mdp import events
+
+    cfg = compose_config("trail=randommix", "trail.levels=3", "trail.variants=1")
+    scene = scene_of(cfg)
+    seen = {}
+    for rule in LevelRule:
+        env = make(64, cfg=cfg, scene=scene, curriculum=CurriculumConfig(rule=rule))
+        env.reset()
+        env.level.zero_()
+        env.steps.fill_(10)
+        events.curriculum(env, torch.arange(64))
+        seen[rule] = set(env.level.tolist())
+    assert seen[LevelRule.distance] == {0}
+    assert seen[LevelRule.uniform] == {0, 1, 2}
+
+
 def test_depth_frames_are_reproducible() -> None:
     """Two envs, same seed, same actions: the same depth frames. Before each ray-casting
     thread got its own MjData (mj_multiRay allocates on it), frames of identical runs

@@ -145,6 +145,18 @@ class WaypointPass(StrEnum):
     past = "past"
 
 
+class LevelRule(StrEnum):
+    """How a finished training episode sets its robot's next level (``env.curriculum.rule``)."""
+
+    # appendix 6.2.1: up past ``up`` of the expected distance, down below ``down``, random
+    # after the top (the oracle's: RL learns where it starts to fail)
+    distance = "distance"
+    # a uniform draw over every level, whatever the episode did: a DAgger student, whose
+    # labels are good on any level, trains on the benchmark's own mix of levels instead of
+    # the low ones its falls keep it on (docs/unified.md)
+    uniform = "uniform"
+
+
 class Schedule(StrEnum):
     """When randomisation comes in (``env.randomization.schedule``)."""
 
@@ -226,6 +238,7 @@ class CurriculumConfig:
     """Appendix 6.2.1 (corrected): up above ``up``, down below ``down`` of the expected distance."""
 
     enabled: bool = True
+    rule: LevelRule = LevelRule.distance
     up: float = 0.8
     down: float = 0.4
     start_level: int = 0  # max initial level (uniform in 0..start_level)

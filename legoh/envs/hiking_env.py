@@ -24,6 +24,7 @@ from torchrl.envs import EnvBase
 
 from legoh import keys
 from legoh.config import EnvConfig, RobotConfig, SimConfig, TrailConfig
+from legoh.config.env import LevelRule
 from legoh.envs.mdp import events, observations, rewards
 from legoh.envs.mdp.state import (
     AirTime,
@@ -128,9 +129,10 @@ class HikingEnv(EnvBase):
         """Per-env bookkeeping and the stateful terms; then the observation table."""
         n, dev, dt, c = self.num_envs, self.device, self.dtype, self.cfg
         self.category = torch.arange(n, device=dev) % self.num_categories
-        self.level = (torch.randint(0, c.curriculum.start_level + 1, (n,), generator=self.gen,
-                                    device=dev) if c.curriculum.enabled
-                      else torch.zeros(n, dtype=torch.int64, device=dev))
+        top = (self.terrain.levels - 1 if c.curriculum.rule == LevelRule.uniform
+               else c.curriculum.start_level)
+        self.level = (torch.randint(0, top + 1, (n,), generator=self.gen, device=dev)
+                      if c.curriculum.enabled else torch.zeros(n, dtype=torch.int64, device=dev))
         self.steps = torch.zeros(n, dtype=torch.int64, device=dev)
         self.episode_metres = torch.zeros(n, dtype=dt, device=dev)  # keys.EPISODE_METRES
         # the last step's failures (falls): the randomisation gate counts them

@@ -10,6 +10,7 @@ from collections.abc import Callable
 
 import torch
 
+from legoh.config.env import LevelRule
 from legoh.envs.curriculum import update_levels
 from legoh.envs.math3d import wrap_angle
 
@@ -108,9 +109,15 @@ def gate(env, ids: torch.Tensor) -> None:
 def curriculum(env, ids: torch.Tensor) -> None:
     """Appendix 6.2.1: finished episodes move their env's level up or down. The expected
     distance is the episode's commanded speed times the episode length (capped at the
-    trail's length), as the appendix says; an episode told to stand keeps its level."""
+    trail's length), as the appendix says; an episode told to stand keeps its level. Under
+    ``rule=uniform`` every finished episode draws its next level uniformly instead."""
     cur = env.cfg.curriculum
     if not cur.enabled:
+        return
+    if cur.rule == LevelRule.uniform:
+        done = ids[env.steps[ids] > 0]
+        env.level[done] = torch.randint(0, env.terrain.levels, (len(done),), generator=env.gen,
+                                        device=env.device)
         return
     done = ids[(env.steps[ids] > 0) & (env.command.speed[ids] > 0)]
     if len(done) == 0:
