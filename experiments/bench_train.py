@@ -1,6 +1,7 @@
 """Where the oracle loop's time goes: bare env, collection, update and loop frames/s.
 
     python experiments/bench_train.py [--sizes 64 256 512 1024] [--iterations 3]
+    python experiments/bench_train.py --sizes 64 256 --no-variants --set env.compile=true --tag compiled
 
 Per batch size N, in one run (these machines are noisy, so compare within a run):
   bare:       HikingEnv.step_and_maybe_reset with random actions (the ceiling);
@@ -51,9 +52,12 @@ LOOPS = {"turns": ["collector.overlap=false"], "overlap": ["collector.overlap=tr
 OUT = ROOT / "experiments" / "results"
 
 
+OVERRIDES: list[str] = []  # --set: applied to every config of the run
+
+
 def config(n: int, *extra: str):
     """The benchmark's config: ``n`` robots on the flat trail."""
-    return compose_config("trail=flat", f"algo.num_envs={n}", *extra)
+    return compose_config("trail=flat", f"algo.num_envs={n}", *OVERRIDES, *extra)
 
 
 def bare_rate(env, steps: int) -> float:
@@ -110,7 +114,10 @@ def main() -> None:  # noqa: PLR0915 - one measurement table after another
     parser.add_argument("--note", default="", help="a line on the conditions of this run")
     parser.add_argument("--tag", default="", help="results as bench_train_<tag>.{md,json}")
     parser.add_argument("--no-variants", action="store_true", help="skip the update variants")
+    parser.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
+                        help="overrides for every env and loop, e.g. env.compile=true")
     args = parser.parse_args()
+    OVERRIDES[:] = args.set
     torch.set_num_threads(1)
     rows = []
     for n in args.sizes:
@@ -151,9 +158,10 @@ def main() -> None:  # noqa: PLR0915 - one measurement table after another
     stem = f"bench_train_{args.tag}" if args.tag else "bench_train"
     (OUT / f"{stem}.json").write_text(json.dumps(
         {"sizes": rows, "update_variants_at_N": n, "variants": var_rows,
-         "torch_threads": 1, "cpus": os.cpu_count(), "note": args.note}, indent=2))
+         "torch_threads": 1, "cpus": os.cpu_count(), "note": args.note, "set": args.set}, indent=2))
     lines = ["# Oracle training loop vs its env (frames/s, one run, 1 torch thread, "
              f"{os.cpu_count()} CPUs)", "", *([args.note, ""] if args.note else []),
+             *([f"Every env and loop with `{' '.join(args.set)}`.", ""] if args.set else []),
              "Loops of the default config (the lean update): turns = "
              f"`{' '.join(LOOPS['turns'])}` (collection and update in turns, one process), "
              f"overlap = `{' '.join(LOOPS['overlap'])}` (the oracle's default: the next batch "
