@@ -2,7 +2,7 @@
 
     python experiments/bench_student.py [--sizes 64 256] [--iterations 4]
         [--variants "" "algo.update_precision=bfloat16 algo.distill_epochs=1 algo.epochs=3"]
-        [--note "..."]
+        [--note "..."] [--tag compiled]
 
 Per batch size N, in one run (these machines are noisy, so compare within a run):
   bare env:      HikingEnv.step_and_maybe_reset with random actions, depth off (the physics
@@ -14,8 +14,8 @@ Per batch size N, in one run (these machines are noisy, so compare within a run)
                  (env + depth + the student acting), the oracle's labels with the prior's
                  steps, PPO, the imitation losses; one row per ``--variants`` entry (Hydra
                  overrides of the student loop, "" the defaults).
-Writes experiments/results/bench_student.{md,json}. The target (issue 20): the student loop
-at >= 2,500 frames/s at N = 256 on 2 cores.
+Writes experiments/results/bench_student[_<tag>].{md,json}. The target (issue 20): the
+student loop at >= 2,500 frames/s at N = 256 on 2 cores.
 """
 
 from __future__ import annotations
@@ -72,6 +72,7 @@ def main() -> None:
                         help="student loops to time, each a space-separated list of Hydra "
                              "overrides ('' = the defaults)")
     parser.add_argument("--note", default="", help="a line on the conditions of this run")
+    parser.add_argument("--tag", default="", help="results as bench_student_<tag>.{md,json}")
     args = parser.parse_args()
     torch.set_num_threads(1)
     rows = []
@@ -103,7 +104,8 @@ def main() -> None:
                    "wall_s": time.perf_counter() - t0}
             rows.append(row)
             print(json.dumps(row), flush=True)
-    (OUT / "bench_student.json").write_text(json.dumps(
+    stem = f"bench_student_{args.tag}" if args.tag else "bench_student"
+    (OUT / f"{stem}.json").write_text(json.dumps(
         {"sizes": rows, "target_fps_at_256": TARGET, "torch_threads": 1, "cpus": os.cpu_count(),
          "note": args.note}, indent=2))
     lines = ["# Student loop vs oracle loop (frames/s, one run, 1 torch thread, "
@@ -121,7 +123,7 @@ def main() -> None:
               f"{r['student_over_oracle']:.2f} | "
               + " | ".join(f"{100 * r[f'share_{p}']:.0f} %" for p in PARTS)
               + f" | {r['depth_backend']} |" for r in rows]
-    (OUT / "bench_student.md").write_text("\n".join(lines) + "\n")
+    (OUT / f"{stem}.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 
 
