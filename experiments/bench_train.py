@@ -1,7 +1,8 @@
 """Where the oracle loop's time goes: bare env, collection, update and loop frames/s.
 
     python experiments/bench_train.py [--sizes 64 256 512 1024] [--iterations 3]
-    python experiments/bench_train.py --sizes 64 256 --no-variants --set env.compile=true --tag compiled
+    python experiments/bench_train.py --sizes 64 256 --no-variants \
+        --set env.compile=true --tag compiled
 
 Per batch size N, in one run (these machines are noisy, so compare within a run):
   bare:       HikingEnv.step_and_maybe_reset with random actions (the ceiling);
