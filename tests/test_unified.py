@@ -344,29 +344,40 @@ def test_a_shipped_student_is_slim_and_checkpoint_pretrained_picks_it(artefacts,
                                              ("float32", torch.float32)])
 def test_update_precision_reaches_the_imitation_update(artefacts, tmp_path, monkeypatch,
                                                        precision, dtype):
-    """algo.update_precision=bfloat16 runs the imitation forward passes (TC-ViTs, GRU, heads)
-    under bfloat16 autocast, with finite float32 losses, and the student acts with its
-    encoder in the same precision. Failed before with: the TC-ViTs re-run in float32 (only
-    PPO followed the setting); then with: the acting encoder in float32."""
+    """algo.update_precision=bfloat16 runs the imitation forward passes (TC-ViTs, GRU, heads,
+    HLM's frozen VAE) under bfloat16 autocast, with finite float32 losses, and the student
+    acts with its encoder in the same precision. Failed before with: the TC-ViTs re-run in
+    float32 (only PPO followed the setting); then with: the acting encoder in float32; then
+    with: HLM's VAE in float32."""
     import csv
     import math
 
+    import legoh.objectives.hlm as hlm
     from legoh.modules.tcvit import FactorisedViViT
 
+    def current_dtype():
+        return (torch.get_autocast_dtype("cpu") if torch.is_autocast_enabled("cpu")
+                else torch.float32)
+
     seen = {True: [], False: []}  # grad enabled: the imitation update; else the acting
-    encode = FactorisedViViT.forward
+    prior_seen = []
+    encode, frozen_encode = FactorisedViViT.forward, hlm.frozen_encode
 
     def spy(self, depth, terminus):
-        seen[torch.is_grad_enabled()].append(
-            torch.get_autocast_dtype("cpu") if torch.is_autocast_enabled("cpu")
-            else torch.float32)
+        seen[torch.is_grad_enabled()].append(current_dtype())
         return encode(self, depth, terminus)
 
+    def prior_spy(vae, actions01, mask=None):
+        prior_seen.append(current_dtype())
+        return frozen_encode(vae, actions01, mask)
+
     monkeypatch.setattr(FactorisedViViT, "forward", spy)
+    monkeypatch.setattr(hlm, "frozen_encode", prior_spy)
     run = train_student(tiny("unified", artefacts, f"algo.update_precision={precision}"),
                         tmp_path)
     assert seen[True] and set(seen[True]) == {dtype}
     assert seen[False] and set(seen[False]) == {dtype}
+    assert prior_seen and set(prior_seen) == {dtype}
     with run.csv.open() as f:
         rows = list(csv.DictReader(f))
     assert all(math.isfinite(float(r["distill/loss_action"])) for r in rows)

@@ -131,11 +131,19 @@ class UnifiedConfig(OracleConfig):
     prior_pretrain_frames: int = 4096
     prior_pretrain_steps: int = 300
     vae_steps: int = 4  # prior updates on the oracle's actions per iteration (alternating)
+    # rows of each prior step, pre-training and per iteration (at most the batch over
+    # algo.minibatches: 192 at the default 32 envs). At 256 envs the batch's 1,536 rows cost
+    # 0.27 s an iteration, 256 rows 0.07 (2 threads; docs/unified.md, Speed)
+    vae_batch: int = 256
     vae_lr: float = 1e-3
     # HLM triplet margin (cosine distance; docs/hlm.md). The masked negative of an exact copy
     # of the oracle's action lands ~0.03-0.12 away, so with 0.2 the term never reaches zero
     hlm_margin: float = 0.2
     distill_epochs: int = 2  # passes of the imitation losses over each batch (in minibatches)
+    # share of the batch's env sequences each imitation pass runs through (a fresh random
+    # draw each pass, still in algo.minibatches steps): below 1 the imitation update costs
+    # that share of its time, on smaller minibatches (docs/unified.md, Speed)
+    distill_share: float = 1.0
     # DAgger's mixture: the teacher's action is executed on a share beta of the steps,
     # 1 at the first iteration, 0 from this many on (linear; 0: off). legoh/train/dagger.py
     dagger_mix_iterations: int = 0

@@ -85,6 +85,7 @@ RANGES: list[tuple[str, Range]] = [
     ("algo.clip_epsilon", POSITIVE), ("algo.init_noise_std", POSITIVE),
     ("algo.tanh_bound", POSITIVE), ("algo.max_grad_norm", POSITIVE),
     ("algo.depth_far", POSITIVE),
+    ("algo.distill_share", Range(0, 1, open_low=True)),
     ("algo.prior_pretrain_*", NON_NEGATIVE),  # 0: no pre-training of the prior
     ("algo.dagger_mix_iterations", NON_NEGATIVE),  # 0: the student always acts
     ("algo.*", COUNT),  # num_envs, steps, frames, epochs, minibatches, every-N, threads

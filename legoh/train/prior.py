@@ -21,8 +21,6 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from legoh.modules.actor_critic import LOC
 
-PRETRAIN_BATCH = 256  # rows per pre-training step (the per-iteration steps use the batch's)
-
 
 def make_prior(cfg: DictConfig, action_dim: int):
     """The action prior of ``algo.prior``: (VAE or None, its optimiser, the HLM loss)."""
@@ -56,14 +54,14 @@ def _prior_loss(vae, bound, c_mt, c_ms, margin, prior, teacher, student):
 def train_prior(vae, optim, teacher: torch.Tensor, cfg: DictConfig, gen: torch.Generator,
                 steps: int | None = None, size: int | None = None) -> dict[str, float]:
     """``steps`` (default ``algo.vae_steps``) minibatch steps of the prior on the oracle's
-    actions ``teacher`` (B, A), minibatches of ``size`` rows (default B /
-    ``algo.minibatches``); the last step's values as ``prior/*`` scalars. The VAE is left
-    frozen (it scores the student)."""
+    actions ``teacher`` (B, A), minibatches of ``size`` rows (default ``algo.vae_batch``,
+    at most B / ``algo.minibatches``); the last step's values as ``prior/*`` scalars. The
+    VAE is left frozen (it scores the student)."""
     from legoh.objectives.hlm import vae_loss
 
     w = cfg.algo.weights
     stats: dict[str, float] = {}
-    size = size or max(1, teacher.shape[0] // cfg.algo.minibatches)
+    size = size or max(1, min(cfg.algo.vae_batch, teacher.shape[0] // cfg.algo.minibatches))
     vae.requires_grad_(True)
     for _ in range(cfg.algo.vae_steps if steps is None else steps):
         idx = torch.randint(0, teacher.shape[0], (size,), generator=gen)
@@ -108,7 +106,7 @@ def pretrain_prior(vae, optim, env: EnvBase, oracle, cfg: DictConfig, gen: torch
                    ) -> dict[str, float]:
     """Pre-train the prior on ``algo.prior_pretrain_frames`` of the oracle's own actions in
     ``env``: fit its action range to them (per joint, :meth:`ActionVAE.fit_action_range`),
-    then ``algo.prior_pretrain_steps`` steps of PRETRAIN_BATCH rows. Returns the number of
+    then ``algo.prior_pretrain_steps`` steps of ``algo.vae_batch`` rows. Returns the number of
     actions and the reconstruction error (action units) of the fresh and the trained VAE
     and of each joint's mean, the best constant guess."""
     algo = cfg.algo
@@ -117,7 +115,7 @@ def pretrain_prior(vae, optim, env: EnvBase, oracle, cfg: DictConfig, gen: torch
     before = reconstruction_error(vae, actions, bound)
     vae.fit_action_range(actions, bound)
     train_prior(vae, optim, actions, cfg, gen, steps=algo.prior_pretrain_steps,
-                size=min(PRETRAIN_BATCH, actions.shape[0]))
+                size=min(algo.vae_batch, actions.shape[0]))
     return {"actions": actions.shape[0], "recon_error_before": before,
             "recon_error_after": reconstruction_error(vae, actions, bound),
             "recon_error_mean_guess": float((actions - actions.mean(0)).abs().mean())}
