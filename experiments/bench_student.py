@@ -13,7 +13,17 @@ Per batch size N, in one run (these machines are noisy, so compare within a run)
                  the split of an iteration from train.csv's ``time/*`` columns: collection
                  (env + depth + the student acting), the oracle's labels with the prior's
                  steps, PPO, the imitation losses; one row per ``--variants`` entry (Hydra
-                 overrides of the student loop, "" the defaults).
+                 overrides of the student loop, "" the defaults);
+  collection alone: the student loop's frames over its mean collection time (the env,
+                 depth and the student acting; same run): what the loop would reach with a
+                 free update, so no update can take it past this rate;
+  update budget: the seconds an iteration leaves for the update at the target (its frames
+                 at 2,500 frames/s minus its collection), beside the update's measured seconds;
+  work bound:    the same student loop with one thread for everything (``algo.torch_threads=1
+                 sim.threads=1``: the physics, depth and torch), times the CPUs: the rate the
+                 loop's work allows with every core busy all the time. The student loop over
+                 it is the loop's parallel efficiency; a target above it needs less work, not
+                 better scheduling.
 Writes experiments/results/bench_student[_<tag>].{md,json}. The target (issue 20): the
 student loop at >= 2,500 frames/s at N = 256 on 2 cores.
 """
@@ -48,6 +58,7 @@ OUT = ROOT / "experiments" / "results"
 PARTS = ("collect", "prior", "ppo", "distill")  # the student's time columns (prior: the
 # oracle's labels and the prior's steps, timed together by StudentDistillation.update)
 TARGET = 2500.0
+ONE_CORE = {"algo": {"torch_threads": 1}, "sim": {"threads": 1}}  # the work bound's loop
 
 
 def loop(train, cfg, iterations: int) -> dict[str, float]:
@@ -61,6 +72,10 @@ def loop(train, cfg, iterations: int) -> dict[str, float]:
     for part in PARTS:
         if f"time/{part}" in cols:
             out[f"s_{part}"] = float(np.mean(cols[f"time/{part}"][1:]))
+    if "s_collect" in out:
+        out["collect_fps"] = frames / out["s_collect"]
+        out["update_s"] = sum(out.get(f"s_{p}", 0.0) for p in PARTS if p != "collect")
+        out["budget_s"] = frames / TARGET - out["s_collect"]
     return out
 
 
@@ -94,11 +109,17 @@ def main() -> None:
             cfg = compose_config("algo=unified", f"algo.num_envs={n}",
                                  "algo.prior_pretrain_frames=0", *variant.split())
             student = loop(train_student, cfg, args.iterations)
+            one_core = loop(train_student, OmegaConf.merge(cfg, ONE_CORE), args.iterations)
+            bound = (os.cpu_count() or 1) * one_core["fps"]
             total = sum(student.get(f"s_{p}", 0.0) for p in PARTS)
             row = {"N": n, "variant": variant or "defaults", "bare": bare, "bare_depth": bare_depth,
                    "depth_cost": bare / bare_depth - 1, "oracle_loop": oracle["fps"],
                    "student_loop": student["fps"],
                    "student_over_oracle": student["fps"] / oracle["fps"],
+                   "collection_alone": student["collect_fps"],
+                   "update_s": student["update_s"], "update_budget_s": student["budget_s"],
+                   "one_core": one_core["fps"], "work_bound": bound,
+                   "student_over_bound": student["fps"] / bound,
                    **{f"share_{p}": student.get(f"s_{p}", 0.0) / total for p in PARTS},
                    "depth_backend": str(depth.backend.value),
                    "wall_s": time.perf_counter() - t0}
@@ -112,17 +133,26 @@ def main() -> None:
              f"{os.cpu_count()} CPUs)", "", *([args.note, ""] if args.note else []),
              f"Target (issue 20): the student loop >= {TARGET:.0f} frames/s at N = 256. Depth "
              "cost: the env step with depth frames over the one without, minus 1 (depth "
-             "backend in the last column). Student split: shares of one iteration.", "",
+             "backend in its column). Student split: shares of one iteration. Collection "
+             "alone: the student loop's frames over its collection seconds, the rate a free "
+             "update would give. Update budget: the seconds an iteration's update may take "
+             "at the target (frames / target - collection; negative: no update fits). Work "
+             "bound: the same loop at one thread for everything (physics, depth, torch), "
+             "times the CPUs: the most its work allows here; student / bound: its parallel "
+             "efficiency.", "",
              "| N | student loop overrides | bare env | + depth | depth cost | oracle loop | "
              "student loop | student / oracle | collect | labels + prior | PPO | imitation | depth "
-             "backend |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "backend | collection alone | update (s) | update budget at the target (s) | "
+             "one core | work bound | student / bound |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     lines += [f"| {r['N']} | {r['variant']} | {r['bare']:.0f} | {r['bare_depth']:.0f} | "
               f"{r['depth_cost']:.2f} | "
               f"{r['oracle_loop']:.0f} | {r['student_loop']:.0f} | "
               f"{r['student_over_oracle']:.2f} | "
               + " | ".join(f"{100 * r[f'share_{p}']:.0f} %" for p in PARTS)
-              + f" | {r['depth_backend']} |" for r in rows]
+              + f" | {r['depth_backend']} | {r['collection_alone']:.0f} | {r['update_s']:.2f} | "
+              f"{r['update_budget_s']:.2f} | {r['one_core']:.0f} | {r['work_bound']:.0f} | "
+              f"{r['student_over_bound']:.2f} |" for r in rows]
     (OUT / f"{stem}.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 
