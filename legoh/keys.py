@@ -33,7 +33,6 @@ GOAL_CORRECTION = ("student", "goal_correction")  # (2,) delta_g0, robot yaw fra
 NEAR_GOALS = ("student", "near_goals")  # (3, 2) predicted g1..g3, robot yaw frame, m
 NAV_STATE = ("recurrent", "nav_state")  # (*S) the navigation core's recurrent state
 NAV_HELD = ("recurrent", "nav_held")  # (D,) outputs held between depth frames (latent tiling)
-NAV_FEATURES = ("student", "nav_features")  # (F,) a frame's state-free features (unroll)
 
 # Step results
 REWARD = "reward"

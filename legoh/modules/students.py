@@ -30,7 +30,7 @@ from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass
 
 import torch
-from tensordict import TensorDictBase
+from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import TensorDictModule, TensorDictModuleBase
 from torch import nn
 from torchrl.data import Composite, Unbounded
@@ -301,15 +301,28 @@ class NavigationModule(TensorDictModuleBase):
         nav = self.navigator
         obs = {k: td.get(k) for k in nav.in_keys}
         start = td.get(keys.IS_INIT).reshape(-1)
-        state = td.get(keys.NAV_STATE) * (~start).view(-1, *[1] * len(nav.state_shape))
-        held = td.get(keys.NAV_HELD)
         fresh = start | td.get(keys.DEPTH_FRESH).reshape(-1) if nav.uses_depth else None
-        features = td.get(keys.NAV_FEATURES, None)  # set by unroll, computed ahead
+        held, state = self.advance(obs, td.get(keys.NAV_STATE), td.get(keys.NAV_HELD), start,
+                                   fresh)
+        for key, value in self.outputs(obs, held, held.shape[0]).items():
+            td.set(key, value)
+        td.set(("next", *keys.NAV_STATE), state)
+        td.set(("next", *keys.NAV_HELD), held)
+        return td
+
+    def advance(self, obs: dict, state: torch.Tensor, held: torch.Tensor, start: torch.Tensor,
+                fresh: torch.Tensor | None, features: torch.Tensor | None = None
+                ) -> tuple[torch.Tensor, torch.Tensor]:
+        """One step of the recurrence on B rows: the state zeroed where an episode starts
+        (``start`` (B,)), then ``Navigator.frame`` on the ``fresh`` rows (None: all) ->
+        (held, state); ``features``: the rows' :meth:`Navigator.encode`, computed ahead."""
+        nav = self.navigator
+        state = state * (~start).view(-1, *[1] * len(nav.state_shape))
         if fresh is None or bool(fresh.all()):
             with self.frame_precision():
                 new_held, new_state = nav.frame(obs, state, features)
-            held, state = new_held.to(held.dtype), new_state.to(state.dtype)
-        elif bool(fresh.any()):
+            return new_held.to(held.dtype), new_state.to(state.dtype)
+        if bool(fresh.any()):
             rows = fresh.nonzero().squeeze(-1)
             with self.frame_precision():
                 new_held, new_state = nav.frame({k: v[rows] for k, v in obs.items()},
@@ -317,16 +330,15 @@ class NavigationModule(TensorDictModuleBase):
                                                 None if features is None else features[rows])
             held = held.index_copy(0, rows, new_held.to(held.dtype))
             state = state.index_copy(0, rows, new_state.to(state.dtype))
-        out = nav.act(obs, held)
-        batch = held.shape[0]
+        return held, state
+
+    def outputs(self, obs: dict, held: torch.Tensor, batch: int) -> dict:
+        """The policy-rate outputs (``Navigator.act``) of ``batch`` rows under their keys."""
+        out = self.navigator.act(obs, held)
         zeros = held.new_zeros
-        td.set(keys.STUDENT_LATENT, out["latent"])
-        td.set(keys.NAV_GOAL, out["nav_goal"])
-        td.set(keys.NEAR_GOALS, out.get("near_goals", zeros(batch, 0, 2)))
-        td.set(keys.GOAL_CORRECTION, out.get("goal_correction", zeros(batch, 2)))
-        td.set(("next", *keys.NAV_STATE), state)
-        td.set(("next", *keys.NAV_HELD), held)
-        return td
+        return {keys.STUDENT_LATENT: out["latent"], keys.NAV_GOAL: out["nav_goal"],
+                keys.NEAR_GOALS: out.get("near_goals", zeros(batch, 0, 2)),
+                keys.GOAL_CORRECTION: out.get("goal_correction", zeros(batch, 2))}
 
 
 def make_locomotion_actor(dims: StudentDims, nav_dim: int, action_dim: int,
@@ -385,26 +397,35 @@ def unroll(navigation: NavigationModule, batch: TensorDictBase) -> TensorDictBas
     """Re-run the navigation module over a collected batch (N, T) with gradients, carrying
     its recurrent state through time from the state stored at t = 0 (truncated BPTT).
 
+    The recurrence steps only through the times where some row has a fresh frame (or an
+    episode starts); the held outputs are carried between them, and the policy-rate part
+    (``Navigator.act``) runs once over all N x T rows. The same outputs as stepping the
+    module through every t (``tests/test_students.py``), with a quarter of the Python steps
+    at depth every 5 steps.
+
     Returns a TensorDict (N, T) with ``STUDENT_LATENT``, ``NAV_GOAL``, ``NEAR_GOALS`` and
     ``GOAL_CORRECTION``.
     """
-    outs = []
-    # the keys the module reads, split into T steps once: indexing the whole batch (every
-    # key) at each step took a sixth of the imitation update (profiled at 64 envs)
-    steps = batch.select(*navigation.in_keys).unbind(1)
-    features = encode_fresh(navigation.navigator, batch)
+    nav = navigation.navigator
+    n, t = batch.shape[:2]
+    obs = {k: batch.get(k) for k in nav.in_keys}
+    start = batch.get(keys.IS_INIT).reshape(n, t)
+    fresh = (start | batch.get(keys.DEPTH_FRESH).reshape(n, t)) if nav.uses_depth else None
+    features = encode_fresh(nav, batch)
     state, held = batch.get(keys.NAV_STATE)[:, 0], batch.get(keys.NAV_HELD)[:, 0]
-    for t, step in enumerate(steps):
-        step = step.clone(recurse=False)
-        if features is not None:
-            step.set(keys.NAV_FEATURES, features[:, t])
-        step.set(keys.NAV_STATE, state)
-        step.set(keys.NAV_HELD, held)
-        step = navigation(step)
-        state, held = step.get(("next", *keys.NAV_STATE)), step.get(("next", *keys.NAV_HELD))
-        outs.append(step.select(keys.STUDENT_LATENT, keys.NAV_GOAL, keys.NEAR_GOALS,
-                                keys.GOAL_CORRECTION))
-    return torch.stack(outs, dim=1)
+    helds = [held]
+    latest = torch.zeros(t, dtype=torch.long)  # per t: which of ``helds`` is current
+    active = range(t) if fresh is None else fresh.any(0).nonzero().squeeze(1).tolist()
+    for step in active:
+        held, state = navigation.advance(
+            {k: v[:, step] for k, v in obs.items()}, state, held, start[:, step],
+            None if fresh is None else fresh[:, step],
+            None if features is None else features[:, step])
+        helds.append(held)
+        latest[step:] = len(helds) - 1
+    held = torch.stack(helds, 1)[:, latest.to(held.device)].flatten(0, 1)  # (N T, H)
+    out = navigation.outputs({k: v.flatten(0, 1) for k, v in obs.items()}, held, n * t)
+    return TensorDict({k: v.unflatten(0, (n, t)) for k, v in out.items()}, batch_size=[n, t])
 
 
 def encode_fresh(nav: Navigator, batch: TensorDictBase) -> torch.Tensor | None:
