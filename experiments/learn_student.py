@@ -5,6 +5,7 @@ as a campaign of sessions that each resume from the last one's committed checkpo
     python experiments/learn_student.py --evaluate [--robot h1] [--seed 0]   # (s2), (s3)
     python experiments/learn_student.py --plot [--robot h1] [--seed 0]
     python experiments/learn_student.py --compare - fast [--robot h1] [--seed 0]   # an A/B
+    python experiments/learn_student.py --average 8 [--robot h1] [--seed 0]   # weights' mean
 
 Teacher (``--teacher``): ``pretrained`` (default) is ``pretrained/<robot>_oracle.pt``; while
 the repository ships none, the H1 hiking oracle of the learn_hike campaign,
@@ -314,6 +315,66 @@ def evaluate_snapshots(args) -> None:
               + f" ({time.perf_counter() - t0:.0f} s)", flush=True)
 
 
+def average_snapshots(args) -> None:
+    """``--average K``: the mean of the newest K snapshots' weights (stochastic weight
+    averaging: torch's ``swa_utils.AveragedModel``), saved as ``snapshots/avg<first>-<last>.pt``
+    and benchmarked as ``--evaluate`` scores a snapshot. A row in ``bench_average.csv`` (the
+    span averaged, the SRs, the ratios), printed beside the snapshots of that span already in
+    bench.csv: whether averaging steadies a student whose hiking swings from one snapshot to
+    the next."""
+    out = run_dir(args)
+    paths = sorted((out / "snapshots").glob("it*.pt"))[-args.average:]
+    if args.average < 2 or len(paths) < args.average:
+        raise SystemExit(f"--average {args.average}: needs at least 2 snapshots, and "
+                         f"{out / 'snapshots'} holds {len(paths)}")
+    snaps = [torch.load(p, map_location="cpu", weights_only=False) for p in paths]
+    if len({s["teacher_sha"] for s in snaps}) > 1:
+        raise SystemExit(f"--average {args.average}: the snapshots {paths[0].name}.."
+                         f"{paths[-1].name} learned from different teachers")
+    teacher = resolve_teacher(args.robot, args.teacher)
+    cfg = bench_config(args, teacher)
+    student = build_student(cfg)
+    averaged = torch.optim.swa_utils.AveragedModel(student.policy, use_buffers=True)
+    for snap in snaps:
+        student.policy.load_state_dict(snap["policy"])
+        averaged.update_parameters(student.policy)
+    cache_path = out / "teacher.json"
+    cache = json.loads(cache_path.read_text()) if cache_path.exists() else {}
+    make_env = student_eval_env_fn(cfg, student)
+    theirs = score_teacher(cfg, make_env, Path(snaps[-1]["teacher"]), cache,
+                           snaps[-1]["teacher_sha"])
+    cache_path.write_text(json.dumps(cache, indent=2))
+    student.policy.load_state_dict(averaged.module.state_dict())
+    first, last = snaps[0], snaps[-1]
+    saved = out / "snapshots" / f"avg{first['iteration']:06d}-{last['iteration']:06d}.pt"
+    torch.save({**{k: last[k] for k in ("iteration", "frames", "minutes", "teacher",
+                                          "teacher_sha")},
+                "policy": student.policy.state_dict(),
+                "averaged": [s["iteration"] for s in snaps]}, saved)  # for play / export
+    row = bench_policy(make_env, student.policy.eval())
+    row = {"snapshots": len(snaps), "first_iteration": first["iteration"],
+           "iteration": last["iteration"], "frames": last["frames"],
+           "first_minutes": round(first["minutes"], 2), "minutes": round(last["minutes"], 2),
+           **row, **ratios(row, theirs)}
+    rows = read_rows(out / "bench_average.csv") + [row]
+    write_rows(out / "bench_average.csv", rows)
+    span = [r for r in read_rows(out / "bench.csv")
+            if first["iteration"] <= r["iteration"] <= last["iteration"]]
+
+    def line(name: str, r: dict) -> str:
+        return (f"{name}: RandomMix 0-2 SR {r['d_sr']:.0f} % (s2 ratio {r['s2_ratio']:.2f}), "
+                + ", ".join(f"{c} {r[f'sr_{c}']:.0f}" for c in CATEGORIES))
+
+    print(f"[learn_student] mean of {len(snaps)} snapshots, {first['minutes']:.0f}-"
+          f"{last['minutes']:.0f} min -> {shown(out / 'bench_average.csv')}")
+    print("  " + line("averaged", row))
+    for r in span:
+        print("  " + line(f"snapshot {r['minutes']:.0f} min", r))
+    if span:
+        mean = {k: float(np.mean([r[k] for r in span])) for k in span[0]}
+        print("  " + line(f"mean of these {len(span)}", mean))
+
+
 # ----------------------------------------------------------------------------- records
 def milestones(out: Path) -> dict:
     """First snapshot (frames, minutes) meeting each milestone, from the records."""
@@ -412,6 +473,8 @@ def make_parser() -> argparse.ArgumentParser:
     parser.add_argument("--teacher", default="pretrained",
                         help="pretrained (else the learn_hike oracle) | PATH")
     parser.add_argument("--trail", default="hike", help="training trail")
+    parser.add_argument("--average", type=int, default=0, metavar="K",
+                        help="benchmark the mean of the newest K snapshots' weights")
     parser.add_argument("--compare", nargs="+", metavar="TAG",
                         help="draw these runs' walk tests side by side ('-': untagged)")
     return parser
@@ -437,6 +500,8 @@ def main() -> None:
         return write_summary(run_dir(args), args)
     if args.evaluate:
         return evaluate_snapshots(args)
+    if args.average:
+        return average_snapshots(args)
     train(args)
 
 

@@ -78,6 +78,26 @@ def test_a_student_campaign_resumes_from_its_committed_files(tmp_path) -> None:
     assert len(cache) == 1 and "d_sr" in next(iter(cache.values()))["row"]
     meta = json.loads((clone / "milestones.json").read_text())
     assert set(meta["milestones"]) == {"s1", "s2", "s3"} and (clone / "curve.png").is_file()
+    # the mean of the snapshots' weights, saved and scored like a snapshot (with session 1's
+    # snapshots beside session 2's, as on the machine that ran both)
+    for snap in (first / "snapshots").glob("it*.pt"):
+        shutil.copy(snap, clone / "snapshots" / snap.name)
+    snaps = sorted((clone / "snapshots").glob("it*.pt"))
+    assert len(snaps) >= 2
+    out = _run(clone, "--average", str(len(snaps)), *bench)
+    assert f"mean of {len(snaps)} snapshots" in out and "averaged: RandomMix 0-2 SR" in out
+    row = _rows(clone / "bench_average.csv")[-1]
+    assert int(float(row["snapshots"])) == len(snaps) and {"d_sr", "s2_ratio"} <= set(row)
+    policies = [torch.load(p, weights_only=False)["policy"] for p in snaps]
+    mean = torch.load(next((clone / "snapshots").glob("avg*.pt")), weights_only=False)["policy"]
+    moved = 0
+    for key, value in mean.items():
+        if value.is_floating_point():
+            torch.testing.assert_close(value, sum(p[key] for p in policies) / len(policies))
+            moved += not torch.equal(policies[0][key], policies[-1][key])
+    assert moved > 0  # the snapshots differ: the mean is not one of them
+    with pytest.raises(AssertionError, match="needs at least 2 snapshots"):
+        _run(clone, "--average", str(len(snaps) + 1), *bench)
 
     # a fresh clone has no snapshots: --evaluate scores the committed checkpoint. Failed
     # before with "no snapshots" (the H1 student's 45-minute state could not be scored)
