@@ -81,6 +81,7 @@ from learn_hike import CATEGORIES, HIKE, bench_overrides, bench_snapshot  # noqa
 from learn_walk import ROBOTS, compose_run, read_evals, walk_env_settings, walk_test  # noqa: E402
 from omegaconf import OmegaConf  # noqa: E402
 
+from legoh.checkpoint import save_checkpoint  # noqa: E402
 from legoh.eval.benchmark import BENCHMARK_VERSION, student_eval_env_fn  # noqa: E402
 from legoh.policies.oracle import load_teacher  # noqa: E402
 from legoh.policies.pretrained import shipped_oracle  # noqa: E402
@@ -317,11 +318,12 @@ def evaluate_snapshots(args) -> None:
 
 def average_snapshots(args) -> None:
     """``--average K``: the mean of the newest K snapshots' weights (stochastic weight
-    averaging: torch's ``swa_utils.AveragedModel``), saved as ``snapshots/avg<first>-<last>.pt``
-    and benchmarked as ``--evaluate`` scores a snapshot. A row in ``bench_average.csv`` (the
-    span averaged, the SRs, the ratios), printed beside the snapshots of that span already in
-    bench.csv: whether averaging steadies a student whose hiking swings from one snapshot to
-    the next."""
+    averaging: torch's ``swa_utils.AveragedModel``), saved as a checkpoint
+    ``snapshots/avg<first>-<last>.pt`` (:func:`save_average`) and benchmarked as
+    ``--evaluate`` scores a snapshot. A row in ``bench_average.csv`` (the span averaged, the
+    SRs, the ratios), printed beside the snapshots of that span already in bench.csv:
+    whether averaging steadies a student whose hiking swings from one snapshot to the
+    next."""
     out = run_dir(args)
     paths = sorted((out / "snapshots").glob("it*.pt"))[-args.average:]
     if args.average < 2 or len(paths) < args.average:
@@ -346,11 +348,9 @@ def average_snapshots(args) -> None:
     cache_path.write_text(json.dumps(cache, indent=2))
     student.policy.load_state_dict(averaged.module.state_dict())
     first, last = snaps[0], snaps[-1]
-    saved = out / "snapshots" / f"avg{first['iteration']:06d}-{last['iteration']:06d}.pt"
-    torch.save({**{k: last[k] for k in ("iteration", "frames", "minutes", "teacher",
-                                          "teacher_sha")},
-                "policy": student.policy.state_dict(),
-                "averaged": [s["iteration"] for s in snaps]}, saved)  # for play / export
+    saved = save_average(out / f"{args.algo}.pt", student, [s["iteration"] for s in snaps],
+                         out / "snapshots" / f"avg{first['iteration']:06d}-"
+                                             f"{last['iteration']:06d}.pt")
     row = bench_policy(make_env, student.policy.eval())
     row = {"snapshots": len(snaps), "first_iteration": first["iteration"],
            "iteration": last["iteration"], "frames": last["frames"],
@@ -366,13 +366,26 @@ def average_snapshots(args) -> None:
                 + ", ".join(f"{c} {r[f'sr_{c}']:.0f}" for c in CATEGORIES))
 
     print(f"[learn_student] mean of {len(snaps)} snapshots, {first['minutes']:.0f}-"
-          f"{last['minutes']:.0f} min -> {shown(out / 'bench_average.csv')}")
+          f"{last['minutes']:.0f} min -> {shown(saved)}, {shown(out / 'bench_average.csv')}")
     print("  " + line("averaged", row))
     for r in span:
         print("  " + line(f"snapshot {r['minutes']:.0f} min", r))
     if span:
         mean = {k: float(np.mean([r[k] for r in span])) for k in span[0]}
         print("  " + line(f"mean of these {len(span)}", mean))
+
+
+def save_average(template: Path, student, iterations: list[int], path: Path) -> Path:
+    """The averaged ``student`` as a checkpoint of its run (``template``'s config, robot,
+    layout and critic; no optimiser or RNG states, as a shipped student): ``mode=play``,
+    ``mode=eval`` and ``ship_pretrained.py`` take it like any checkpoint."""
+    state = torch.load(template, map_location="cpu", weights_only=False)
+    state = {k: v for k, v in state.items() if k not in ("optimizers", "rng")}
+    state["models"] = {**state["models"], "navigation": student.navigation.state_dict(),
+                       "locomotion": student.locomotion.state_dict()}
+    state["iteration"] = iterations[-1]
+    state["extra"] = {**state.get("extra", {}), "averaged": iterations}
+    return save_checkpoint(path, state)
 
 
 # ----------------------------------------------------------------------------- records

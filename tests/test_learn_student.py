@@ -15,6 +15,8 @@ import pytest
 import torch
 from omegaconf import OmegaConf
 
+from legoh.checkpoint import load_checkpoint
+
 ROOT = Path(__file__).resolve().parents[1]
 TEACHER = ROOT / "experiments/results/learn_hike/h1-s0/oracle.pt"
 TINY = ["--envs", "4", "--walk-robots", "2", "--eval-every", "100", "--frames", "10000000",
@@ -89,12 +91,15 @@ def test_a_student_campaign_resumes_from_its_committed_files(tmp_path) -> None:
     row = _rows(clone / "bench_average.csv")[-1]
     assert int(float(row["snapshots"])) == len(snaps) and {"d_sr", "s2_ratio"} <= set(row)
     policies = [torch.load(p, weights_only=False)["policy"] for p in snaps]
-    mean = torch.load(next((clone / "snapshots").glob("avg*.pt")), weights_only=False)["policy"]
+    saved = load_checkpoint(next((clone / "snapshots").glob("avg*.pt")), expect_robot="h1")
+    assert saved["extra"]["averaged"] == [int(p.stem[2:]) for p in snaps]
     moved = 0
-    for key, value in mean.items():
-        if value.is_floating_point():
-            torch.testing.assert_close(value, sum(p[key] for p in policies) / len(policies))
-            moved += not torch.equal(policies[0][key], policies[-1][key])
+    for part, prefix in (("navigation", "module.0."), ("locomotion", "module.1.")):
+        for key, value in saved["models"][part].items():
+            if value.is_floating_point():
+                mean = sum(p[prefix + key] for p in policies) / len(policies)
+                torch.testing.assert_close(value, mean)
+                moved += not torch.equal(policies[0][prefix + key], policies[-1][prefix + key])
     assert moved > 0  # the snapshots differ: the mean is not one of them
     with pytest.raises(AssertionError, match="needs at least 2 snapshots"):
         _run(clone, "--average", str(len(snaps) + 1), *bench)
