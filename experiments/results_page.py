@@ -167,6 +167,36 @@ def campaigns_section() -> list[str]:
     return lines
 
 
+def averages_section() -> list[str]:
+    """Each student run's ``bench_average.csv`` (``learn_student.py --average K``): the mean
+    of K snapshots' weights beside the mean of the benchmarked snapshots it spans."""
+    paths = sorted((RESULTS / "learn_student").glob("*/bench_average.csv"))
+    if not paths:
+        return []
+    cols = ("d_sr", *(f"sr_{c}" for c in CATEGORIES))
+    lines = ["## Averaged student snapshots", "",
+             "SR % of the mean of K snapshots' weights (`learn_student.py --average K`) and, "
+             "in brackets, the mean of the snapshots benchmarked within its span "
+             "(`bench.csv`); same benchmark, same seeds.", "",
+             "| Run | K | Minutes | RandomMix 0-2 | " + " | ".join(
+                 "RandomMix" if c == "randommix" else c.capitalize() for c in CATEGORIES) + " |",
+             "|---|---|---|---|" + "---|" * len(CATEGORIES)]
+    for path in paths:
+        with open(path.parent / "bench.csv", newline="") as f:
+            snaps = list(csv.DictReader(f))
+        with open(path, newline="") as f:
+            for row in csv.DictReader(f):
+                lo, hi = float(row["first_iteration"]), float(row["iteration"])
+                span = [r for r in snaps if lo <= float(r["iteration"]) <= hi]
+                cells = [f"{float(row[c]):.0f}" + (
+                    f" ({sum(float(r[c]) for r in span) / len(span):.0f})" if span else "")
+                    for c in cols]
+                lines.append(f"| `{path.parent.name}` | {float(row['snapshots']):.0f} | "
+                             f"{float(row['first_minutes']):.0f}-{float(row['minutes']):.0f} | "
+                             + " | ".join(cells) + " |")
+    return lines + [""]
+
+
 def films_section() -> list[str]:
     strips = sorted(RESULTS.glob("**/*_filmstrip.png")) + sorted(
         PRETRAINED.glob("**/*_filmstrip.png"))
@@ -222,7 +252,7 @@ def write_page() -> Path:
              "Written by `python experiments/results_page.py` from the committed results; "
              "do not edit by hand.", ""]
     for section in (shipped_section, hill_section, study_section, campaigns_section,
-                    films_section):
+                    averages_section, films_section):
         lines += section()
     PAGE.write_text("\n".join(lines))
     return PAGE

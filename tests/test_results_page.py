@@ -1,0 +1,32 @@
+"""The results page reads its numbers from the committed files (nothing typed by hand)."""
+
+import csv
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "experiments"))
+
+
+def test_averaged_snapshots_are_set_beside_the_snapshots_they_span(tmp_path, monkeypatch):
+    import results_page
+
+    run = tmp_path / "learn_student" / "h1-unified-s0"
+    run.mkdir(parents=True)
+    cols = ["d_sr", *(f"sr_{c}" for c in results_page.CATEGORIES)]
+    with open(run / "bench.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, ["iteration", *cols])
+        w.writeheader()
+        for it, sr in ((10, 20.0), (20, 40.0), (30, 90.0)):  # the last is outside the span
+            w.writerow({"iteration": it, **{c: sr for c in cols}})
+    with open(run / "bench_average.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, ["snapshots", "first_iteration", "iteration", "first_minutes",
+                               "minutes", *cols])
+        w.writeheader()
+        w.writerow({"snapshots": 3, "first_iteration": 5, "iteration": 20,
+                    "first_minutes": 6.0, "minutes": 18.0, **{c: 55.0 for c in cols}})
+    monkeypatch.setattr(results_page, "RESULTS", tmp_path)
+    lines = results_page.averages_section()
+    row = next(line for line in lines if "h1-unified-s0" in line)
+    assert row.startswith("| `h1-unified-s0` | 3 | 6-18 | 55 (30) |")
+    assert row.count("55 (30)") == len(cols)
