@@ -377,8 +377,8 @@ def average_snapshots(args) -> None:
 
 def save_average(template: Path, student, iterations: list[int], path: Path) -> Path:
     """The averaged ``student`` as a checkpoint of its run (``template``'s config, robot,
-    layout and critic; no optimiser or RNG states, as a shipped student): ``mode=play``,
-    ``mode=eval`` and ``ship_pretrained.py`` take it like any checkpoint."""
+    layout and critic; no optimiser or RNG states, as a shipped student): ``mode=play`` and
+    ``mode=eval`` take it like any checkpoint (``checkpoint=PATH``)."""
     state = torch.load(template, map_location="cpu", weights_only=False)
     state = {k: v for k, v in state.items() if k not in ("optimizers", "rng")}
     state["models"] = {**state["models"], "navigation": student.navigation.state_dict(),
