@@ -81,7 +81,7 @@ from learn_hike import CATEGORIES, HIKE, bench_overrides, bench_snapshot  # noqa
 from learn_walk import ROBOTS, compose_run, read_evals, walk_env_settings, walk_test  # noqa: E402
 from omegaconf import OmegaConf  # noqa: E402
 
-from legoh.checkpoint import save_checkpoint  # noqa: E402
+from legoh.checkpoint import load_checkpoint, save_checkpoint  # noqa: E402
 from legoh.eval.benchmark import BENCHMARK_VERSION, student_eval_env_fn  # noqa: E402
 from legoh.policies.oracle import load_teacher  # noqa: E402
 from legoh.policies.pretrained import shipped_oracle  # noqa: E402
@@ -379,7 +379,7 @@ def save_average(template: Path, student, iterations: list[int], path: Path) -> 
     """The averaged ``student`` as a checkpoint of its run (``template``'s config, robot,
     layout and critic; no optimiser or RNG states, as a shipped student): ``mode=play`` and
     ``mode=eval`` take it like any checkpoint (``checkpoint=PATH``)."""
-    state = torch.load(template, map_location="cpu", weights_only=False)
+    state = load_checkpoint(template)  # verified: a damaged template is refused
     state = {k: v for k, v in state.items() if k not in ("optimizers", "rng")}
     state["models"] = {**state["models"], "navigation": student.navigation.state_dict(),
                        "locomotion": student.locomotion.state_dict()}
