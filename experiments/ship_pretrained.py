@@ -5,7 +5,9 @@
         --run experiments/results/learn_student/h1-unified-s0
 
 ``--stage oracle`` (default) copies the run's ``oracle.pt`` (refused above 10 MB); a
-stage-2 variant (``unified``, ``ep_h``, ...) copies ``<stage>.pt`` without its optimiser and
+stage-2 variant (``unified``, ``ep_h``, ...) copies ``<stage>.pt`` (or ``--checkpoint``, a
+file of the run such as ``learn_student.py --average``'s ``snapshots/avg<first>-<last>.pt``;
+its minutes are read at its iteration in the run's ``clock.csv``) without its optimiser and
 RNG states (a third of a student's file; nobody resumes a shipped student's Adam) and
 exports it as ``<robot>_<stage>.ts`` (TorchScript, ``mode=export``'s format). Then it
 benchmarks the file with the hiking protocol (the five categories of ``trail=hike``, levels
@@ -55,6 +57,8 @@ def main() -> None:
                         help="oracle, or the stage-2 algo the run trained (unified, ep_h, ...)")
     parser.add_argument("--run", help="a learn_hike / learn_student run folder (required "
                                       "unless --main-job-only)")
+    parser.add_argument("--checkpoint", help="ship this file of the run instead of "
+                                             "<run>/<stage>.pt (e.g. an averaged snapshot)")
     parser.add_argument("--robots", type=int, default=80, help="robots per level and run")
     parser.add_argument("--runs", type=int, default=2)
     parser.add_argument("--recipe", help="how it was trained, when not the campaign script's "
@@ -75,7 +79,8 @@ def main() -> None:
     if not args.run:
         parser.error("--run is required (a learn_hike or learn_student run folder)")
     run = Path(args.run)
-    dst = ship_file(run / f"{args.stage}.pt", args.robot, args.stage)
+    src = Path(args.checkpoint) if args.checkpoint else run / f"{args.stage}.pt"
+    dst = ship_file(src, args.robot, args.stage)
     state = torch.load(dst, map_location="cpu", weights_only=True)
     cfg = compose_run(args.robot, 0, "walk", "hike", [
         f"algo={args.stage}", f"eval.robots={args.robots}", f"eval.runs={args.runs}",
@@ -89,15 +94,13 @@ def main() -> None:
         policy = policy.policy
     result = evaluate(cfg, policy, PRETRAINED_DIR / f"{args.robot}_{args.stage}_eval",
                       label=f"{args.robot}_{args.stage}", env_fn=env_fn)
-    clock = run / "clock.csv"
-    minutes = float(clock.read_text().strip().splitlines()[-1].split(",")[1]) if (
-        clock.exists()) else args.minutes
+    minutes = clock_minutes(run / "clock.csv", int(state["iteration"]), args.minutes)
     frames = int(state["iteration"]) * int(state["config"]["algo"]["num_envs"]) * int(
         state["config"]["algo"]["steps_per_env"])
     recipe = RECIPES["oracle" if args.stage == "oracle" else "student"]
     card = {"robot": args.robot, "stage": args.stage, "file": dst.name,
             "iteration": int(state["iteration"]), "frames": frames, "minutes": minutes,
-            "run": str(run), "commit": trained_by(run),
+            "run": str(run), "checkpoint": str(src), "commit": trained_by(run),
             "recipe": args.recipe or recipe.format(robot=args.robot, stage=args.stage),
             "origin": args.origin or ("from the learn_walk walker" if args.stage == "oracle"
                                       else f"distilled from `{args.robot}_oracle.pt`"),
@@ -108,6 +111,19 @@ def main() -> None:
     card_path.write_text(json.dumps(card, indent=2))
     write_readme()
     print((PRETRAINED_DIR / "README.md").read_text())
+
+
+def clock_minutes(clock: Path, iteration: int, default: float | None) -> float | None:
+    """Training minutes at ``iteration`` (the last ``clock.csv`` row at or before it: an
+    averaged snapshot ends before the run does), ``default`` without a clock."""
+    if not clock.exists():
+        return default
+    with open(clock) as f:
+        rows = [(float(r["iteration"]), float(r["minutes"])) for r in csv.DictReader(f)]
+    before = [m for it, m in rows if it <= iteration]
+    if not before:
+        raise SystemExit(f"{clock} has no row at or before iteration {iteration}")
+    return before[-1]
 
 
 def ship_file(src: Path, robot: str, stage: str) -> Path:
