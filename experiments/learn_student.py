@@ -378,7 +378,8 @@ def average_snapshots(args) -> None:
 def save_average(template: Path, student, iterations: list[int], path: Path) -> Path:
     """The averaged ``student`` as a checkpoint of its run (``template``'s config, robot,
     layout and critic; no optimiser or RNG states, as a shipped student): ``mode=play`` and
-    ``mode=eval`` take it like any checkpoint (``checkpoint=PATH``)."""
+    ``mode=eval`` take it like any checkpoint (``checkpoint=PATH``), ``ship_pretrained.py
+    --checkpoint PATH`` ships it."""
     state = load_checkpoint(template)  # verified: a damaged template is refused
     state = {k: v for k, v in state.items() if k not in ("optimizers", "rng")}
     state["models"] = {**state["models"], "navigation": student.navigation.state_dict(),
