@@ -68,6 +68,9 @@ def env_rate(robot: str, n: int, depth: bool, steps: int, scene=None,
     """Policy steps/s of HikingEnv at level 2 with random actions (resets included), or
     (``hold``) zero actions: the default pose held, the ceiling's own motion. The env's
     ``compile_s``: seconds of its first reset and step (``env.compile``'s graphs)."""
+    extra = list(extra or [])
+    if not any(e.startswith("env.compile=") for e in extra):
+        extra.append("env.compile=false")  # the eager env unless a row asks otherwise
     cfg = compose_cfg(robot, depth, extra)
     if scene is None:
         env = make_env(cfg, num_envs=n)

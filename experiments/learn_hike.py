@@ -58,6 +58,7 @@ from campaign import (  # noqa: E402
 from learn_walk import compose_run, eval_env, read_evals, walk_test  # noqa: E402
 
 from legoh.eval.benchmark import rollout_level  # noqa: E402
+from legoh.policies.embodiment import with_checkpoint_body  # noqa: E402
 from legoh.train.oracle import train_oracle  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -94,7 +95,15 @@ def train_config(args) -> tuple[list[str], object]:
     init = args.init if args.init != "walker" else str(WALKER.get(args.robot, "none"))
     extra = [f"algo.total_frames={args.frames}", f"algo.num_envs={args.envs}", *LEAN, *HIKE,
              f"init={init}"]
-    return extra, compose_run(args.robot, args.seed, PRESET, "hike", [*extra, *args.overrides])
+    return extra, own_body(args, compose_run(args.robot, args.seed, PRESET, "hike",
+                                             [*extra, *args.overrides]))
+
+
+def own_body(args, cfg):
+    """``cfg`` with the feet the campaign's checkpoint trained on, when it has one: a
+    campaign resumes, walk-tests and benchmarks on its own body."""
+    ckpt = run_dir(args) / "oracle.pt"
+    return with_checkpoint_body(cfg, ckpt) if ckpt.is_file() else cfg
 
 
 def train(args) -> None:
@@ -133,8 +142,8 @@ def bench_config(args):
     placed 2-10 m of path from the terminus (the protocol's default), randomisation on,
     30 s, ``--bench-robots`` robots per level (round-robin over the categories)."""
     init = [] if args.robot not in WALKER else LEAN[2:3]  # the critic size the actor needs
-    return compose_run(args.robot, args.seed, PRESET, "hike",
-                       [*init, *bench_overrides(args), *args.overrides])
+    return own_body(args, compose_run(args.robot, args.seed, PRESET, "hike",
+                                      [*init, *bench_overrides(args), *args.overrides]))
 
 
 def bench_overrides(args) -> list[str]:

@@ -83,6 +83,7 @@ from omegaconf import OmegaConf  # noqa: E402
 
 from legoh.checkpoint import load_checkpoint, save_checkpoint  # noqa: E402
 from legoh.eval.benchmark import BENCHMARK_VERSION, student_eval_env_fn  # noqa: E402
+from legoh.policies.embodiment import with_checkpoint_body  # noqa: E402
 from legoh.policies.oracle import load_teacher  # noqa: E402
 from legoh.policies.pretrained import shipped_oracle  # noqa: E402
 from legoh.policies.student import build_student, make_student_env, state_shapes  # noqa: E402
@@ -195,7 +196,8 @@ def bench_config(args, teacher: Path):
         algo = {**trained["algo"], "oracle_checkpoint": str(teacher)}
         cfg = OmegaConf.merge(cfg, {"algo": algo, "env": {"depth": trained["env"]["depth"]},
                                     "robot": {"camera": trained["robot"]["camera"]}})
-    return cfg
+    # the feet it trained on: the run's checkpoint's, else its teacher's
+    return with_checkpoint_body(cfg, ckpt if ckpt.is_file() else teacher)
 
 
 def bench_policy(make_env, policy) -> dict:

@@ -263,12 +263,14 @@ def film_hill(robot: str, level: int, robots: int, seconds: float) -> None:
     robot's path over the map (the benchmark's trajectories picture)."""
     from legoh.config.compose import compose_config
     from legoh.eval.benchmark import evaluate, make_eval_env
+    from legoh.eval.cli import for_checkpoint
     from legoh.play import render_policy_video
     from legoh.policies.oracle import load_oracle_actor
 
     cfg = compose_config(f"robot={robot}", "trail=hill", f"eval.robots={robots}",
                          "eval.runs=1", "eval.variants=1", f"eval.levels=[{level}]",
                          f"eval.seconds={seconds}", "eval.spawn_remaining=null")
+    cfg, _ = for_checkpoint(cfg, "pretrained")  # its own feet
     env = make_eval_env(cfg)
     actor = load_oracle_actor(cfg, "pretrained", env)
     length = float(env.trails_t.length.max())  # m of expert path, start to terminus
@@ -293,11 +295,12 @@ def film_demo(robot: str, trail: str, width: int = 360, every: int = 3) -> Path:
     from PIL import Image
 
     from legoh.config.compose import compose_config
-    from legoh.eval.cli import build_actor
+    from legoh.eval.cli import build_actor, for_checkpoint
     from legoh.play import render_policy_video
 
     cfg = compose_config(f"robot={robot}", f"trail={trail}", "mode=play",
                          "checkpoint=pretrained")
+    cfg, _ = for_checkpoint(cfg, "pretrained")  # its own feet, as mode=play films it
     actor, _ = build_actor(cfg, "pretrained")  # what mode=play loads
     out = RESULTS / "demo" / f"{robot}_{trail}.mp4"
     film = render_policy_video(cfg, actor, out)

@@ -39,7 +39,7 @@ from learn_walk import compose_run  # noqa: E402
 from legoh.checkpoint import save_checkpoint  # noqa: E402
 from legoh.config.compose import compose_config  # noqa: E402
 from legoh.eval.benchmark import evaluate  # noqa: E402
-from legoh.eval.cli import build_actor  # noqa: E402
+from legoh.eval.cli import build_actor, for_checkpoint  # noqa: E402
 from legoh.policies.pretrained import PRETRAINED_DIR, benchmark_protocol  # noqa: E402
 
 MAX_BYTES = 10 * 2**20
@@ -86,6 +86,7 @@ def main() -> None:
         f"algo={args.stage}", f"eval.robots={args.robots}", f"eval.runs={args.runs}",
         "eval.variants=2", "eval.levels=[0,1,2,3,4]", "eval.randomization=true",
         "eval.seed=2000"])
+    cfg, _ = for_checkpoint(cfg, "pretrained")  # scored on its own feet
     policy, env_fn = build_actor(cfg, "pretrained")
     if args.stage != "oracle":
         from legoh.export import export_student
@@ -147,7 +148,7 @@ def main_job_reference(robot: str) -> dict:
     """The shipped file scored on the main job's own benchmark (``python run.py
     robot=<robot>``: its trail, eval protocol and seed), which the main job prints beside
     its own table (``legoh.app.print_beside_shipped``)."""
-    cfg = compose_config(f"robot={robot}")
+    cfg, _ = for_checkpoint(compose_config(f"robot={robot}"), "pretrained")
     actor = build_actor(cfg, "pretrained")[0]
     with tempfile.TemporaryDirectory() as tmp:
         result = evaluate(cfg, actor, tmp, label=f"{robot}_oracle")

@@ -42,7 +42,9 @@ def train_and_evaluate(cfg: DictConfig, out_dir: Path) -> None:
     everything went. A stage-2 algorithm first trains (or reuses) the oracle it needs."""
     from legoh.eval.benchmark import evaluate
     from legoh.eval.curves import plot_learning_curve
+    from legoh.train.teacher import run_body
 
+    cfg = run_body(cfg, cfg.resume)  # the feet it trains on: its checkpoint's or teacher's
     if cfg.algo.stage == Stage.oracle:
         from legoh.train.oracle import train_oracle
 

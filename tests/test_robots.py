@@ -3,6 +3,7 @@
 import mujoco
 import numpy as np
 import pytest
+import torch
 from omegaconf import OmegaConf
 
 from legoh.config import RobotConfig, SimConfig
@@ -122,3 +123,76 @@ def test_mjcf_without_the_joints_is_refused(tmp_path) -> None:
                      "<geom size='0.1'/></body></worldbody></mujoco>")
     with pytest.raises(ValueError, match="left_hip_yaw"):
         build_robot_spec(robot_cfg("h1", f"robot.mjcf={other}"))
+
+
+def _feet_colliders(model: mujoco.MjModel, cfg: RobotConfig) -> list[np.ndarray]:
+    """Per foot, the geom ids of its colliders."""
+    return [np.flatnonzero((model.geom_bodyid == model.body(f).id) & (model.geom_contype > 0))
+            for f in cfg.feet_bodies]
+
+
+def _sole_bottom(model: mujoco.MjModel, geoms: np.ndarray) -> float:
+    """Lowest point (m, foot frame) of a foot's colliders, as built (axis-aligned here)."""
+    out = np.inf
+    for g in geoms:
+        rot = np.zeros(9)
+        mujoco.mju_quat2Mat(rot, model.geom_quat[g])
+        rot, size = rot.reshape(3, 3), model.geom_size[g]
+        kind = model.geom_type[g]
+        if kind == mujoco.mjtGeom.mjGEOM_SPHERE:
+            reach = size[0]
+        elif kind == mujoco.mjtGeom.mjGEOM_CAPSULE:
+            reach = size[0] + abs(rot[2, 2]) * size[1]
+        else:
+            reach = float(np.abs(rot[2]) @ size)
+        out = min(out, model.geom_pos[g][2] - reach)
+    return float(out)
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_sphere_feet_sit_at_the_soles_corners(name: str) -> None:
+    """robot.feet_collider=spheres: four spheres per foot spanning the source colliders'
+    sole (heel to toe, side to side), their bottoms on its lowest point; box: one box."""
+    source_cfg = robot_cfg(name, "robot.feet_collider=source")
+    source = build_robot_spec(source_cfg)[0].compile()
+    spheres = build_robot_spec(robot_cfg(name, "robot.feet_collider=spheres"))[0].compile()
+    box = build_robot_spec(robot_cfg(name, "robot.feet_collider=box"))[0].compile()
+    for old, new, one in zip(_feet_colliders(source, source_cfg),
+                             _feet_colliders(spheres, source_cfg),
+                             _feet_colliders(box, source_cfg), strict=True):
+        assert len(new) == 4 and np.all(spheres.geom_type[new] == mujoco.mjtGeom.mjGEOM_SPHERE)
+        assert len(one) == 1 and box.geom_type[one[0]] == mujoco.mjtGeom.mjGEOM_BOX
+        xy = spheres.geom_pos[new][:, :2]
+        r = spheres.geom_size[new[0], 0]
+        span = source.geom_pos[old][:, 0]
+        assert xy[:, 0].min() - r <= span.min() and xy[:, 0].max() + r >= span.max()
+        assert xy[:, 1].min() < 0 < xy[:, 1].max()  # both sides of the sole
+        assert _sole_bottom(spheres, new) == pytest.approx(_sole_bottom(source, old), abs=1e-6)
+        assert _sole_bottom(box, one) == pytest.approx(_sole_bottom(source, old), abs=1e-6)
+        # friction and contact dimension are the source's (per-env friction lives there)
+        np.testing.assert_allclose(spheres.geom_friction[new], source.geom_friction[old[:1]]
+                                   .repeat(4, axis=0))
+    # the rest of the body is untouched
+    assert spheres.ngeom - 8 == source.ngeom - sum(map(len, _feet_colliders(source, source_cfg)))
+
+
+@pytest.mark.parametrize(("name", "feet"), [("h1", "spheres"), ("h1", "box"), ("g1", "spheres")])
+def test_new_feet_stand_and_carry_the_weight(name: str, feet: str) -> None:
+    """On each feet collider the robot stands under PD and the feet's contact sensors (what
+    feet_contact and the force terms read) carry its weight."""
+    from legoh.config.compose import compose_config as compose
+    from legoh.envs.hiking_env import make_env
+
+    cfg = compose(f"robot={name}", "trail=flat", "trail.variants=1", "trail.levels=1",
+                  f"robot.feet_collider={feet}")  # randomisation: its gate starts closed
+    env = make_env(cfg, num_envs=1)
+    td = env.reset()
+    for _ in range(100):  # 2 s holding the default pose
+        td["action"] = torch.zeros(1, env.num_actions)
+        td = env.step(td)["next"]
+    s = env.state
+    weight = env.scene.model.body_subtreemass[1] * 9.81
+    assert bool(s.feet_contact.all())
+    assert float(s.feet_force[0, :, 2].abs().sum()) == pytest.approx(weight, rel=0.15)
+    assert abs(float(s.base_height[0]) - env.robot.nominal_base_height) < 0.05
+    env.close()

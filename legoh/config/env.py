@@ -272,9 +272,10 @@ class EnvConfig:
     divergence_qvel: float = 1.0e3  # |qvel| above this counts as a diverged simulation
     # torch.compile what a step derives from the physics (state, terminations, rewards,
     # the state's observation terms) into one graph per env: about half the milliseconds
-    # outside the physics, ~30-40 s of compiling at the first step and first reset (a C++
-    # compiler on the CPU; docs/env.md, experiments/bench_env.py)
-    compile: bool = False
+    # outside the physics, 4-15 s of compiling at the first step and first reset (a C++
+    # compiler on the CPU; docs/env.md, experiments/bench_env.py). None (auto): on the CPU
+    # from COMPILE_MIN_ENVS robots up where a C++ compiler works; true: always; false: never
+    compile: bool | None = None
     # reward preset (REWARD_PRESETS): hike (default) | walk (learn_walk's flat-ground recipe:
     # velocity along the heading) | table6 (appendix Table 6 as written)
     reward_preset: str = "hike"

@@ -4,6 +4,17 @@ from dataclasses import dataclass, field
 from enum import Enum
 
 
+class FeetCollider(Enum):
+    """The feet's collision shapes (docs/robots.md, "Feet"). ``source``: the MJCF's own
+    colliders (meshes fitted as capsules: H1's three capsules, G1's four spheres), what the
+    checkpoints before 2026-12-05 trained on; ``spheres``: four spheres at the corners of the
+    sole, the cheapest against height fields; ``box``: one box over the sole."""
+
+    source = "source"
+    spheres = "spheres"
+    box = "box"
+
+
 class UpperBody(Enum):
     """What the waist and arms do: hold the default pose, or join the action."""
 
@@ -49,6 +60,8 @@ class RobotConfig:
     effort_action_scale: float | None = None
     nominal_base_height: float = 1.0  # m, pelvis height standing on flat ground
     feet_bodies: list[str] = field(default_factory=list)  # [left, right]
+    # what the feet collide with; a checkpoint that did not store it trained on ``source``
+    feet_collider: FeetCollider = FeetCollider.spheres
     camera: CameraConfig = field(default_factory=CameraConfig)
     knee_bodies: list[str] = field(default_factory=list)  # shins/knees: collision-term bodies
     hip_joints: list[str] = field(default_factory=list)  # hip yaw/roll: Table 6 "hip position"

@@ -95,8 +95,7 @@ class HikingEnv(EnvBase):
         self._make_specs()
         # what a step and a reset derive from the physics: eager, or one compiled graph each
         self._after_step, self._after_reset = self._derive_step, self._derive_reset
-        if env.compile:
-            _check_compiler(self.device)
+        if _wants_compile(env.compile, self.device, num_envs):
             self._after_step = torch.compile(self._derive_step, dynamic=False, fullgraph=True)
             self._after_reset = torch.compile(self._derive_reset, dynamic=False, fullgraph=True)
 
@@ -329,19 +328,33 @@ class HikingEnv(EnvBase):
         super().close(**kwargs)
 
 
-def _check_compiler(device: torch.device) -> None:
-    """``env.compile`` on the CPU builds C++ kernels: refuse at once, not at the first step,
-    where no compiler works."""
-    if torch.device(device).type != "cpu":
-        return
+# env.compile=null compiles from this many robots up: there the graphs' 4-15 s of compiling
+# pay back within a minute (bench_contacts.md), and small test envs stay eager
+COMPILE_MIN_ENVS = 64
+
+
+def _wants_compile(setting: bool | None, device: torch.device, num_envs: int) -> bool:
+    """Whether the env compiles its derivations: ``env.compile`` true (refused at once where
+    no C++ compiler works) or false; None: on the CPU with a compiler, N >= COMPILE_MIN_ENVS."""
+    cpu = torch.device(device).type == "cpu"
+    if setting is not None:
+        if setting and cpu and (err := _compiler_error()):
+            raise RuntimeError(f"env.compile=true on the CPU needs a C++ compiler for "
+                               f"torch.compile ({err}); install g++ (or set CXX) or run with "
+                               "env.compile=false")
+        return bool(setting)
+    return cpu and num_envs >= COMPILE_MIN_ENVS and _compiler_error() is None
+
+
+def _compiler_error() -> str | None:
+    """Why torch.compile cannot build C++ kernels here (None: it can)."""
     from torch._inductor.cpp_builder import get_cpp_compiler
 
     try:
         get_cpp_compiler()
     except Exception as err:
-        raise RuntimeError(f"env.compile=true on the CPU needs a C++ compiler for "
-                           f"torch.compile ({err}); install g++ (or set CXX) or run with "
-                           "env.compile=false") from err
+        return str(err)
+    return None
 
 
 def _observed(value):

@@ -22,7 +22,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from legoh.config.robot import RobotConfig, UpperBody
+from legoh.config.robot import FeetCollider, RobotConfig, UpperBody
 
 # Collision bits: robot geoms touch the world (bit 2) but not each other (their conaffinity
 # lacks bit 1); world geoms (ground, terrain, obstacles) use WORLD_CONTYPE/WORLD_CONAFFINITY.
@@ -112,6 +112,57 @@ def _fit_mesh_colliders(spec: mujoco.MjSpec) -> None:
             geom.type = mujoco.mjtGeom.mjGEOM_CAPSULE  # meshname kept: MuJoCo fits to it
 
 
+def _foot_extent(spec: mujoco.MjSpec, foot: str) -> tuple[np.ndarray, np.ndarray, float]:
+    """The box (lo, hi) (3,) in the foot body's frame that bounds its source colliders, and
+    their smallest radius (m). Read off a compiled copy: the compiler fits mesh colliders."""
+    model = spec.copy().compile()
+    body = model.body(foot).id
+    lo, hi, radius = np.full(3, np.inf), np.full(3, -np.inf), np.inf
+    for g in np.flatnonzero((model.geom_bodyid == body) & (model.geom_contype != 0)):
+        rot = np.zeros(9)
+        mujoco.mju_quat2Mat(rot, model.geom_quat[g])
+        rot, size, pos = rot.reshape(3, 3), model.geom_size[g], model.geom_pos[g]
+        gtype, G = int(model.geom_type[g]), mujoco.mjtGeom
+        if gtype == G.mjGEOM_SPHERE:
+            half, r = np.zeros(3), size[0]
+        elif gtype in (G.mjGEOM_CAPSULE, G.mjGEOM_CYLINDER):
+            half, r = np.abs(rot[:, 2]) * size[1], size[0]
+        elif gtype == G.mjGEOM_BOX:
+            half, r = np.abs(rot) @ size, float(size.min())
+        else:
+            raise ValueError(f"foot '{foot}': collider type {gtype} has no fitted extent")
+        lo, hi = np.minimum(lo, pos - half - r), np.maximum(hi, pos + half + r)
+        radius = min(radius, float(r))
+    if not np.isfinite(radius):
+        raise ValueError(f"foot '{foot}' has no collider in the MJCF to size new feet from")
+    return lo, hi, radius
+
+
+def _replace_foot_colliders(spec: mujoco.MjSpec, foot: str, kind: FeetCollider) -> None:
+    """Swap the foot's colliders for ``kind``, sized to the sole the source colliders span:
+    four spheres of their smallest radius at the sole's corners, or one box over the sole
+    (as thick as that diameter). Friction and solver settings are the source's."""
+    lo, hi, r = _foot_extent(spec, foot)
+    body = spec.body(foot)
+    old = [g for g in body.geoms if g.contype or g.conaffinity]
+    template = old[0]
+    for geom in old:
+        spec.delete(geom)
+    common = dict(contype=template.contype, conaffinity=template.conaffinity,
+                  friction=list(template.friction), condim=template.condim,
+                  solref=list(template.solref), solimp=list(template.solimp),
+                  group=template.group)
+    if kind == FeetCollider.spheres:
+        for k, (x, y) in enumerate([(lo[0] + r, lo[1] + r), (lo[0] + r, hi[1] - r),
+                                    (hi[0] - r, lo[1] + r), (hi[0] - r, hi[1] - r)]):
+            body.add_geom(name=f"{foot}_sole{k}", type=mujoco.mjtGeom.mjGEOM_SPHERE,
+                          size=[r, 0.0, 0.0], pos=[x, y, lo[2] + r], **common)
+    else:
+        centre = [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2] + r]
+        body.add_geom(name=f"{foot}_sole", type=mujoco.mjtGeom.mjGEOM_BOX,
+                      size=[(hi[0] - lo[0]) / 2, (hi[1] - lo[1]) / 2, r], pos=centre, **common)
+
+
 def _joint_limits(spec: mujoco.MjSpec, joint: str) -> tuple[float, float]:
     jnt = spec.joint(joint)
     return float(jnt.range[0]), float(jnt.range[1])
@@ -181,6 +232,9 @@ def build_robot_spec(cfg: RobotConfig, render: bool = False) -> tuple[mujoco.MjS
         act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
 
     _fit_mesh_colliders(spec)
+    if FeetCollider(cfg.feet_collider) != FeetCollider.source:
+        for foot in cfg.feet_bodies:
+            _replace_foot_colliders(spec, foot, FeetCollider(cfg.feet_collider))
     if not render:
         spec.discard_visual()
     for geom in spec.geoms:

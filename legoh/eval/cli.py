@@ -9,6 +9,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from legoh.config.algo import Stage
 from legoh.eval.benchmark import evaluate, make_eval_env, student_eval_env_fn
+from legoh.policies.embodiment import with_checkpoint_body
 from legoh.policies.oracle import build_oracle, load_oracle_actor
 from legoh.policies.pretrained import resolve_checkpoint, shipped_stage
 from legoh.policies.student import sensors_from_checkpoint, student_from_checkpoint
@@ -16,10 +17,13 @@ from legoh.policies.student import sensors_from_checkpoint, student_from_checkpo
 
 def for_checkpoint(cfg: DictConfig, checkpoint: str | None) -> tuple[DictConfig, str | None]:
     """``checkpoint`` resolved (``pretrained``: the robot's shipped file for this algo,
-    ``pretrained/<robot>_<oracle | algo name>.pt``) and, for a student, ``cfg`` with the
-    camera and depth settings it was trained with (:func:`sensors_from_checkpoint`)."""
+    ``pretrained/<robot>_<oracle | algo name>.pt``) and ``cfg`` with the feet it trained on
+    (:func:`with_checkpoint_body`) and, for a student, the camera and depth settings it was
+    trained with (:func:`sensors_from_checkpoint`)."""
     if checkpoint == "pretrained":
         checkpoint = str(resolve_checkpoint(checkpoint, cfg.robot.name, shipped_stage(cfg)))
+    if checkpoint:
+        cfg = with_checkpoint_body(cfg, checkpoint)
     if checkpoint and cfg.algo.stage != Stage.oracle:
         cfg = sensors_from_checkpoint(cfg, checkpoint)
     return cfg, checkpoint
@@ -56,6 +60,7 @@ def main(cfg: DictConfig, out_dir: str | Path) -> dict:
         warnings.warn("no checkpoint given (checkpoint=<path>): evaluating an untrained actor",
                       stacklevel=2)
         print("[legoh] WARNING: no checkpoint given, evaluating an untrained actor")
+    cfg, checkpoint = for_checkpoint(cfg, checkpoint)  # the env of its own feet and camera
     policy, env_fn = build_actor(cfg, checkpoint)
     actor = policy.policy if env_fn is not None else policy
     label = Path(checkpoint).stem if checkpoint else "untrained"

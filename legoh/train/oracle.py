@@ -20,6 +20,7 @@ from legoh.checkpoint import CheckpointError
 from legoh.envs.hiking_env import HikingEnv, make_env
 from legoh.objectives.adaptation import adaptation_loss
 from legoh.objectives.ppo import make_ppo, ppo_update
+from legoh.policies.embodiment import with_checkpoint_body
 from legoh.policies.oracle import LEGACY_CRITIC, build_oracle, load_oracle_checkpoint
 from legoh.policies.pretrained import init_checkpoint
 from legoh.train.algorithm import Algorithm
@@ -117,6 +118,8 @@ def train_oracle(cfg: DictConfig, out_dir: Path, resume: str | None = None,
     resume=<checkpoint>``), then exit (:class:`legoh.runs.GracefulStop`). A second run into
     ``out_dir`` while this one lives is refused (:func:`legoh.runs.run_lock`).
     """
+    if resume:  # a resumed run keeps the feet it trained on
+        cfg = with_checkpoint_body(cfg, resume)
     with training_session(cfg, out_dir) as stop:
         env = make_env(cfg, num_envs=cfg.algo.num_envs)
         algorithm = OraclePPO(cfg, env)

@@ -8,6 +8,8 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
+from legoh.config.algo import Stage
+from legoh.policies.embodiment import with_checkpoint_body
 from legoh.policies.oracle import oracle_stage_config
 from legoh.policies.pretrained import resolve_checkpoint, shipped_oracle
 from legoh.runs import RunFolderBusy, resume_command, wait_for_run
@@ -53,6 +55,17 @@ def ensure_oracle(cfg: DictConfig) -> Path:
             return _train_artefact_oracle(cfg, out)
         except RunFolderBusy:  # another job took the folder first: wait for it, then read
             continue
+
+
+def run_body(cfg: DictConfig, resume: str | None) -> DictConfig:
+    """``cfg`` with the body a training run acts in: a resumed run keeps its checkpoint's
+    feet; a student takes its teacher's (the teacher's labels hold on its own feet only);
+    a new oracle run the config's (``legoh.policies.embodiment``)."""
+    if resume:
+        return with_checkpoint_body(cfg, resume)
+    if cfg.algo.stage != Stage.oracle:
+        return with_checkpoint_body(cfg, ensure_oracle(cfg))
+    return cfg
 
 
 def _train_artefact_oracle(cfg: DictConfig, out: Path) -> Path:

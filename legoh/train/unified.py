@@ -40,7 +40,7 @@ from legoh.train.collect import overlapped, policy_device
 from legoh.train.dagger import TeacherMix, student_rows, teacher_share
 from legoh.train.prior import make_prior, pretrain_prior, train_prior
 from legoh.train.runner import OnPolicyRunner, Run, training_session
-from legoh.train.teacher import ensure_oracle
+from legoh.train.teacher import ensure_oracle, run_body
 
 
 class StudentDistillation(Algorithm):
@@ -239,6 +239,7 @@ def train_student(cfg: DictConfig, out_dir: Path, resume: str | None = None,
               "its lagged batches leave PPO ~1-2 % of their rows (ESS in train.csv) and "
               "imitated worse in the measured runs (docs/unified.md, 'Speed')")
     teacher_path = ensure_oracle(cfg)  # before the session: it may train an oracle of its own
+    cfg = run_body(cfg, resume)
     with training_session(cfg, out_dir) as stop:
         student = build_student(cfg)
         shapes = state_shapes(student)
