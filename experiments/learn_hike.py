@@ -70,16 +70,16 @@ WALKER = {"h1": ROOT / "experiments/results/learn_walk/h1-walk-s0-fast-c256-e3/o
 # 3 epochs): the walker it starts from was trained with it
 LEAN = ["algo.update_precision=bfloat16", "collector.overlap=true",
         "algo.critic_hidden=[256,128,64]", "algo.epochs=3"]
-# the walker covers about 60 % of its commanded distance on flat ground (it tracks ~0.6 x
-# the command), so with the paper's 0.8 no robot was promoted in 25 minutes (mean level
-# 0.03): up at 0.6, down below 0.3 (env.curriculum.up=0.8 env.curriculum.down=0.4: paper)
-HIKE = ["env.curriculum.up=0.6", "env.curriculum.down=0.3"]
-# The reward preset: ``hike``, the velocity kernel toward the next waypoint instead of along
-# the robot's own heading (for its first 1,312 iterations, 16.1M frames, h1-s0 trained with
-# the heading kernel and learned to walk in circles; docs/oracle.md). It was given as
-# absolute weights (env.rewards.tracking_*), which also overrode a robot's reward_scales:
-# the G1 hiked with half the waypoint kernel its walker learned with (docs/oracle.md, G1)
-PRESET = "hike"
+# The recipe (``--recipe``): v2 (default) is the config's own defaults since 2026-12-05: the
+# ``leap`` reward preset, support heights, a gait clock that yields near edges, commands up
+# to 1.5 m/s, the appendix's curriculum thresholds (0.8 / 0.4), sphere feet. v1 is the
+# shipped oracles' (conf/experiment/recipe_v1.yaml): the ``hike`` preset (the velocity
+# kernel toward the next waypoint: with the heading form h1-s0 learned to walk in circles;
+# docs/oracle.md), heights against pit floors, the clock everywhere, the MJCF's feet, and
+# thresholds 0.6 / 0.3 (the walker covers ~60 % of its commanded distance, so at the
+# paper's 0.8 no robot was promoted in 25 minutes).
+RECIPES = {"v1": ("hike", ["+experiment=recipe_v1"]), "v2": ("leap", [])}
+HIKE = RECIPES["v1"][1]  # the students' scripts train with their v1 teachers' recipe
 CATEGORIES = ("randommix", "ditch", "hurdle", "gap", "forest")
 D_SR, E_SR_MIX, E_SR_CAT = 50.0, 70.0, 50.0
 
@@ -93,9 +93,10 @@ def run_dir(args) -> Path:
 def train_config(args) -> tuple[list[str], object]:
     """(the campaign's own overrides, the composed training config) of a session."""
     init = args.init if args.init != "walker" else str(WALKER.get(args.robot, "none"))
-    extra = [f"algo.total_frames={args.frames}", f"algo.num_envs={args.envs}", *LEAN, *HIKE,
+    preset, recipe = RECIPES[args.recipe]
+    extra = [f"algo.total_frames={args.frames}", f"algo.num_envs={args.envs}", *LEAN, *recipe,
              f"init={init}"]
-    return extra, own_body(args, compose_run(args.robot, args.seed, PRESET, "hike",
+    return extra, own_body(args, compose_run(args.robot, args.seed, preset, "hike",
                                              [*extra, *args.overrides]))
 
 
@@ -142,8 +143,9 @@ def bench_config(args):
     placed 2-10 m of path from the terminus (the protocol's default), randomisation on,
     30 s, ``--bench-robots`` robots per level (round-robin over the categories)."""
     init = [] if args.robot not in WALKER else LEAN[2:3]  # the critic size the actor needs
-    return own_body(args, compose_run(args.robot, args.seed, PRESET, "hike",
-                                      [*init, *bench_overrides(args), *args.overrides]))
+    preset, recipe = RECIPES[args.recipe]
+    return own_body(args, compose_run(args.robot, args.seed, preset, "hike",
+                                      [*init, *recipe, *bench_overrides(args), *args.overrides]))
 
 
 def bench_overrides(args) -> list[str]:
@@ -285,6 +287,9 @@ def compare(args) -> Path:
 def make_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_campaign_arguments(parser, envs=512, scored="d, e")
+    parser.add_argument("--recipe", choices=sorted(RECIPES), default="v2",
+                        help="v2: the config's defaults (leap preset, support heights, ...); "
+                             "v1: the shipped oracles' (conf/experiment/recipe_v1.yaml)")
     parser.add_argument("--init", default="walker",
                         help="walker (the committed learn_walk walker) | none | PATH")
     parser.add_argument("--compare", nargs="+", metavar="TAG",

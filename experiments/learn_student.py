@@ -137,8 +137,10 @@ def student_config(args, teacher: Path, trail: str, more: list[str]):
     # the hike preset, the oracle's own: the velocity kernel toward the next waypoint, times
     # the robot's reward_scales (until session 4 learn_hike's HIKE set it as an absolute
     # weight over the walk preset: the same weights for H1, half the kernel for G1)
+    # the v1 recipe (conf/experiment/recipe_v1.yaml) in training and benchmark alike: the
+    # shipped teachers' own
     return compose_run(args.robot, args.seed, "hike", trail,
-                       [f"algo={args.algo}", f"algo.oracle_checkpoint={teacher}", *more,
+                       [f"algo={args.algo}", f"algo.oracle_checkpoint={teacher}", *HIKE, *more,
                         *args.overrides])
 
 
@@ -148,7 +150,7 @@ def train(args) -> None:
     (out / "snapshots").mkdir(exist_ok=True)
     teacher = resolve_teacher(args.robot, args.teacher)
     sha = file_hash(teacher)
-    recipe = [f"algo.total_frames={args.frames}", f"algo.num_envs={args.envs}", *HIKE]
+    recipe = [f"algo.total_frames={args.frames}", f"algo.num_envs={args.envs}"]
     cfg = student_config(args, teacher, args.trail, recipe)
     shapes = state_shapes(build_student(cfg))
     walk_cfg, walk_overrides = walk_env_settings(cfg, "flat", False)

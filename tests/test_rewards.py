@@ -54,7 +54,8 @@ def neutral(**changes: object) -> StepState:
         feet_on_edge=zeros(N, F, dtype=torch.bool), unsafe_contacts=zeros(N, dtype=torch.int64),
         level=zeros(N, dtype=torch.int64), command=zeros(N, 2), phase=zeros(N, F),
         stance=torch.ones(N, F, dtype=torch.bool), feet_height=zeros(N, F),
-        swing_target=zeros(N, F), advance=torch.ones(N, dtype=torch.bool),
+        swing_target=zeros(N, F), clock_weight=torch.ones(N, dtype=torch.float64),
+        advance=torch.ones(N, dtype=torch.bool),
         path_progress=zeros(N), line_progress=zeros(N), failed=zeros(N, dtype=torch.bool),
     )
     return replace(state, **{k: torch.as_tensor(v) for k, v in changes.items()})
@@ -105,8 +106,8 @@ CASES: dict[str, tuple[dict, list[float], str]] = {
         {"feet_force": rows([[3.0, 0.0, 1.0], [0.0, 0.0, 0.0]], [[0.0, 0.0, 0.0],
                                                                   [3.0, 4.0, 1.0]])},
         [0.0, 1.0], "fires when horizontal force > 4x vertical (3 < 4, 5 > 4)"),
-    "feet_edge": ({"feet_on_edge": np.ones((N, F), dtype=bool), "level": np.array([3, 4])},
-                  [0.0, 2.0], "only above level 3, counts feet"),
+    "feet_edge": ({"feet_on_edge": np.ones((N, F), dtype=bool), "level": np.array([0, 1])},
+                  [0.0, 2.0], "only above level 0 (env.edge_min_level), counts feet"),
     "feet_air_time": (
         {"first_contact": np.array([[True, False], [True, False]]),
          "air_time": rows([0.8, 0.0], [0.2, 0.0])},
@@ -177,6 +178,16 @@ def test_neutral_state_has_no_penalty() -> None:
     for name in REWARD_TERMS:
         if name not in bonuses:
             np.testing.assert_allclose(value_of(name, state), 0.0, atol=1e-6, err_msg=name)
+
+
+@pytest.mark.parametrize("name", ["feet_contact_phase", "feet_swing_height", "feet_phase"])
+def test_the_clock_terms_yield_where_its_weight_is_zero(name: str) -> None:
+    """Near an edge, pit or obstacle (clock weight 0) the gait clock neither pays nor
+    charges; halfway out of that zone, half."""
+    changes = CASES[name][0]
+    full = value_of(name, neutral(**changes))
+    weighted = value_of(name, neutral(**changes, clock_weight=np.array([0.0, 0.5])))
+    np.testing.assert_allclose(weighted, [0.0, 0.5 * full[1]], atol=1e-12)
 
 
 def test_tracking_goal_vel_is_capped_at_goal_speed() -> None:

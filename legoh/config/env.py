@@ -81,6 +81,19 @@ def hike_weights() -> dict[str, float]:
     return {**walk_weights(), "tracking_lin_vel": 0.0, "tracking_waypoint_vel": 1.0}
 
 
+def leap_weights() -> dict[str, float]:
+    """The ``leap`` preset (the default since 2026-12-05; ``hike`` keeps the shipped oracles'
+    recipe): ``hike`` plus what pays for crossing gaps and hurdles. Table 6's clearance terms
+    at the hike preset's scale (a tenth of Table 6's: its velocity kernel weighs 1 where
+    Table 6's goal velocity weighs 10): collision -1 (any non-foot body on the terrain),
+    feet_stumble -0.1, feet_edge -0.1 (from level 1, ``env.edge_min_level``); and Table 6's
+    feet_air_time +1 (H1's column), which pays a long step at touch-down. The gait clock's
+    terms stay but yield near edges, pits and obstacles (``env.gait.yield_near``), and
+    heights are the support's (``env.height_reference``). Why each: docs/oracle.md."""
+    return {**hike_weights(), "collision": -1.0, "feet_stumble": -0.1, "feet_edge": -0.1,
+            "feet_air_time": 1.0}
+
+
 # name -> (weights, clip the step's total at 0)
 REWARD_PRESETS = {
     # legged_gym's defaults around Table 6 (Extreme Parkour trains with them), with its
@@ -89,6 +102,7 @@ REWARD_PRESETS = {
     # every step of a standing robot earns (alive, the kernels), so nothing is clipped
     "walk": (walk_weights, False),
     "hike": (hike_weights, False),
+    "leap": (leap_weights, False),
 }
 
 
@@ -143,6 +157,17 @@ class WaypointPass(StrEnum):
     # also once past it along the path: beyond the line through it square to the segment
     # that leads to it. A robot passing beside one is not labelled back toward it
     past = "past"
+
+
+class HeightReference(StrEnum):
+    """What base and foot heights are measured against (``env.height_reference``)."""
+
+    # the height field straight below: pit floors included, so a foot over a gap reads ~1 m
+    # of lift and a base over it ~1 m too high (the shipped oracles trained with it)
+    ground = "ground"
+    # the surface the robot stands on: the scan heights (box tops included) with pits up to
+    # ``env.support_window`` wide filled to their rim (a grey closing; docs/env.md)
+    support = "support"
 
 
 class LevelRule(StrEnum):
@@ -215,7 +240,9 @@ class CommandConfig:
     yaw rate steering toward the next expert waypoint (legged_gym's heading command).
     Evaluation commands ``env.goal_speed`` and never zero."""
 
-    speed: list[float] = field(default_factory=lambda: [0.3, 1.0])  # m/s, uniform per episode
+    # m/s, uniform per episode: up to 1.5 as Extreme Parkour samples, room for the long
+    # steps of gaps (the shipped oracles trained with [0.3, 1.0])
+    speed: list[float] = field(default_factory=lambda: [0.3, 1.5])
     zero_prob: float = 0.1  # fraction of training episodes told to stand still (a skill too)
     heading_gain: float = 1.0  # rad/s of yaw rate per rad of heading error
     max_yaw_rate: float = 1.0  # rad/s
@@ -231,6 +258,12 @@ class GaitConfig:
     stance: float = 0.55  # fraction of the cycle in stance
     swing_height: float = 0.08  # m, foot lift the swing-height term asks for
     phase_sigma: float = 0.005  # m^2, the feet-phase term's exp(-err^2 / sigma)
+    # the clock yields to the terrain: its terms (feet_phase, feet_contact_phase,
+    # feet_swing_height) weigh 0 within ``yield_near`` m of an edge, pit or obstacle and
+    # fade back to 1 over the next ``yield_fade`` m, so steps there may be long and high.
+    # 0: the clock everywhere (the shipped oracles' recipe)
+    yield_near: float = 0.6  # m
+    yield_fade: float = 0.6  # m
 
 
 @dataclass
@@ -270,15 +303,20 @@ class EnvConfig:
     # The curriculum's covered distance still counts from the trail start.
     spawn_remaining: list[float] | None = None
     divergence_qvel: float = 1.0e3  # |qvel| above this counts as a diverged simulation
+    # base and foot heights (base_height, feet_swing_height, feet_phase, the low-base
+    # termination) against the ground straight below or the support (HeightReference)
+    height_reference: HeightReference = HeightReference.support
+    support_window: float = 1.0  # m: pits up to this wide count as filled to their rim
     # torch.compile what a step derives from the physics (state, terminations, rewards,
     # the state's observation terms) into one graph per env: about half the milliseconds
     # outside the physics, 4-15 s of compiling at the first step and first reset (a C++
     # compiler on the CPU; docs/env.md, experiments/bench_env.py). None (auto): on the CPU
     # from COMPILE_MIN_ENVS robots up where a C++ compiler works; true: always; false: never
     compile: bool | None = None
-    # reward preset (REWARD_PRESETS): hike (default) | walk (learn_walk's flat-ground recipe:
-    # velocity along the heading) | table6 (appendix Table 6 as written)
-    reward_preset: str = "hike"
+    # reward preset (REWARD_PRESETS): leap (default: hike + clearance and air-time terms) |
+    # hike (the shipped oracles') | walk (learn_walk's flat-ground recipe: velocity along the
+    # heading) | table6 (appendix Table 6 as written)
+    reward_preset: str = "leap"
     # weight per term over the preset's; None keeps the preset's (a term of your own:
     # +env.rewards.my_term=1.0 after registering it with legoh.envs.mdp.rewards.reward_term)
     rewards: dict[str, float | None] = field(default_factory=lambda: dict.fromkeys(
@@ -287,7 +325,9 @@ class EnvConfig:
     only_positive_rewards: bool | None = None
     tracking_sigma: float = 0.25  # m^2/s^2, the velocity kernels' exp(-err^2 / sigma)
     air_time_target: float = 0.5  # s, Table 6 feet air time
-    edge_min_level: int = 3  # the feet-edge term counts on levels above this one
+    # the feet-edge term counts on levels above this one: 0, from level 1 (Extreme Parkour's
+    # 3 is of its 10 levels; ours were 3 of 5 until 2026-12-05, i.e. level 4 alone)
+    edge_min_level: int = 0
     command: CommandConfig = field(default_factory=CommandConfig)
     gait: GaitConfig = field(default_factory=GaitConfig)
     depth: DepthConfig = field(default_factory=DepthConfig)

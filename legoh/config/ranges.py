@@ -119,6 +119,7 @@ RANGES: list[tuple[str, Range]] = [
     ("env.air_time_target", NON_NEGATIVE),
     ("env.edge_min_level", NON_NEGATIVE),
     ("env.command.*", NON_NEGATIVE), ("env.gait.swing_height", NON_NEGATIVE),
+    ("env.gait.yield_near", NON_NEGATIVE),  # 0: the gait clock everywhere
     ("env.*", POSITIVE),  # durations, radii, angles, clips, speeds, sigmas
 ]
 # pairs of keys that must be ordered (first <= second) when both are set

@@ -25,7 +25,7 @@ from torchrl.envs import EnvBase
 from legoh import keys
 from legoh.config import EnvConfig, RobotConfig, SimConfig, TrailConfig
 from legoh.config.env import LevelRule
-from legoh.envs.mdp import events, observations, rewards
+from legoh.envs.mdp import events, observations, rewards, support
 from legoh.envs.mdp.state import (
     AirTime,
     Goals,
@@ -117,6 +117,7 @@ class HikingEnv(EnvBase):
         self.trails_t = self.trails.to(dev, dt)
         self.ground = Grid(tm.heights, tm.origin, tm.resolution, dev, dt)
         self.scan_grid = Grid(self.scene.scan_heights, tm.origin, tm.resolution, dev, dt)
+        self.support, self.clock_grid = support.terrain_fields(self.scene, self.cfg, dev, dt)
         self.edges = Grid(tm.edge_mask, tm.origin, tm.resolution, dev, dt, torch.bool)
         self.scan_rotor = observations.scan_rotor(observations.scan_points(dev, dt)
                                                   / self.scan_grid.res)

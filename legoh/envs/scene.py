@@ -104,8 +104,9 @@ def _add_terrain(spec: mujoco.MjSpec, tm: TerrainMap, chunk: float) -> None:
         )
 
 
-def scan_height_grid(tm: TerrainMap) -> np.ndarray:
-    """Ground heights raised to the top of every obstacle: what scandots measure."""
+def scan_height_grid(tm: TerrainMap, trees: bool = True) -> np.ndarray:
+    """Ground heights raised to the top of every obstacle (``trees``: tree trunks too):
+    what scandots measure."""
     grid = tm.heights.astype(np.float32).copy()
     nx, ny = grid.shape
     xs = tm.origin[0] + np.arange(nx) * tm.resolution
@@ -119,7 +120,7 @@ def scan_height_grid(tm: TerrainMap) -> np.ndarray:
         inside = (np.abs(c * gx + s * gy) <= hx) & (np.abs(-s * gx + c * gy) <= hy)
         block = grid[i0:i1, j0:j1]
         block[inside] = np.maximum(block[inside], z + hz)
-    for x, y, z, r, hz in tm.cylinders:
+    for x, y, z, r, hz in (tm.cylinders if trees else []):
         i0, i1 = np.searchsorted(xs, [x - r, x + r])
         j0, j1 = np.searchsorted(ys, [y - r, y + r])
         gx, gy = np.meshgrid(xs[i0:i1] - x, ys[j0:j1] - y, indexing="ij")

@@ -47,7 +47,8 @@ def _logged(cols: dict[str, np.ndarray], key: str) -> bool:
 def learning_panels(cols: dict[str, np.ndarray], dt: float | None = None) -> list[Panel]:
     """The panels a run's columns ``cols`` fill, in reading order; ``dt`` (s, the policy
     period) turns episode steps into seconds. Every panel has at least one logged line."""
-    terms = sorted(k for k in cols if k.startswith("reward/") and _logged(cols, k))
+    terms = sorted(k for k in cols if k.startswith("reward/") and k.count("/") == 1
+                   and _logged(cols, k))  # reward/<term>/<category>: per-category columns
     bonuses = [k for k in terms if np.nanmean(cols[k]) >= 0]
     penalties = [k for k in terms if k not in bonuses]
     length = (f"episode length ({'s' if dt else 'policy steps'})",

@@ -201,6 +201,10 @@ def batch_scalars(batch, categories: list[str] | None = None) -> dict[str, float
             end = ended & mine
             stats[f"fell/{name}"] = (float(nxt[keys.FELL][end].float().mean()) if end.any()
                                      else float("nan"))
+            # every reward term per category: which terms a category's robots earn or pay
+            for term, value in nxt[keys.REWARD_TERMS].items():
+                stats[f"reward/{term}/{name}"] = (float(value[mine].mean()) if mine.any()
+                                                  else float("nan"))
     return stats
 
 

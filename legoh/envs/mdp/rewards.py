@@ -220,21 +220,23 @@ def dof_vel(s: StepState) -> torch.Tensor:
 
 @reward_term
 def feet_contact_phase(s: StepState) -> torch.Tensor:
-    """Number of feet whose contact matches the gait clock (stance down, swing up)."""
-    return (s.feet_contact == s.stance).sum(1).to(s.yaw.dtype)
+    """Number of feet whose contact matches the gait clock (stance down, swing up), times
+    the clock's weight here (it yields near edges, pits and obstacles)."""
+    return (s.feet_contact == s.stance).sum(1).to(s.yaw.dtype) * s.clock_weight
 
 
 @reward_term
 def feet_swing_height(s: StepState, height: float) -> torch.Tensor:
-    """sum over airborne feet of (lift - swing height)^2."""
-    return ((s.feet_height - height) ** 2 * ~s.feet_contact).sum(1)
+    """sum over airborne feet of (lift - swing height)^2, times the clock's weight."""
+    return ((s.feet_height - height) ** 2 * ~s.feet_contact).sum(1) * s.clock_weight
 
 
 @reward_term
 def feet_phase(s: StepState, sigma: float) -> torch.Tensor:
     """exp(-sum (lift - clock's lift)^2 / sigma): MuJoCo Playground's feet-phase term, a
-    dense signal for stepping (the contact match pays only once a foot is off the ground)."""
-    return torch.exp(-((s.feet_height - s.swing_target) ** 2).sum(1) / sigma)
+    dense signal for stepping (the contact match pays only once a foot is off the ground);
+    times the clock's weight."""
+    return torch.exp(-((s.feet_height - s.swing_target) ** 2).sum(1) / sigma) * s.clock_weight
 
 
 @reward_term

@@ -61,6 +61,9 @@ class StepState:
     stance: torch.Tensor  # (N, F) bool: the gait clock wants this foot on the ground
     feet_height: torch.Tensor  # (N, F) m: foot lift above its standing height
     swing_target: torch.Tensor  # (N, F) m: the lift the gait clock asks for now
+    # (N,) weight of the clock's terms here: 0 near edges, pits and obstacles, where the
+    # clock yields to the terrain (env.gait.yield_near), else 1
+    clock_weight: torch.Tensor
     advance: torch.Tensor  # (N,) bool: whose observation history takes this state
     # (N,) m/s: how fast the remaining expert path / the straight line to the terminus
     # shrank over this step (0 on a reset); ``NavProgress`` keeps the bookkeeping
@@ -344,7 +347,9 @@ def compute_state(env, action: torch.Tensor | None = None) -> StepState:
         last_action = mem.action
     command = env.command.update(env.goals.ahead(0), pos, yaw)
     xy = torch.cat([pos[:, None, :2], feet[..., :2]], 1)  # base, then feet
-    ground = env.ground.bilinear(xy)
+    ground = env.support.bilinear(xy)  # env.height_reference: the support or bare ground
+    clock = (torch.ones_like(pos[:, 0]) if env.clock_grid is None
+             else env.clock_grid.bilinear(pos[:, :2]))
     gait = env.cfg.gait
     phase = gait_phase(env.steps, env.dt, gait.period, nf)
     stance = (phase < gait.stance) | (env.command.speed[:, None] == 0)
@@ -371,7 +376,8 @@ def compute_state(env, action: torch.Tensor | None = None) -> StepState:
         unsafe_contacts=(sd[:, :, sl.unsafe_found] > 0).any(1).sum(1),
         level=env.level, command=command, phase=phase, stance=stance,
         feet_height=feet[..., 2] - ground[:, 1:] - env.feet_rest_height,
-        swing_target=target, advance=torch.ones(n, dtype=torch.bool, device=pos.device),
+        swing_target=target, clock_weight=clock,
+        advance=torch.ones(n, dtype=torch.bool, device=pos.device),
         path_progress=path_rate, line_progress=line_rate,
         failed=torch.zeros(n, dtype=torch.bool, device=pos.device),
     )
