@@ -11,8 +11,10 @@ geometry alone, not from the spawn code under test:
   pose, a 3 x 3 grid over it, turned by the spawn's yaw) stands on ground more than
   ``PIT_DROP`` below the waypoint the robot was put on (stones and platforms sit on a 1 m pit);
 * **base over a pit** (Gap): the same test at the base's xy;
-* **no hurdle ahead** (Hurdle): the expert path from the spawn to the terminus (spawn, the
-  waypoints ahead, terminus) crosses no hurdle's footprint.
+* **no obstacle ahead**: the expert path from the spawn to the terminus (spawn, the
+  waypoints ahead, terminus) crosses no hurdle's footprint (Hurdle), no pit (Gap: ground
+  ``PIT_DROP`` below the stood-on waypoint);
+* **in the window**: the stood-on waypoint has 2-10 m of path left (``eval.spawn_remaining``).
 
 Prints one row per (category, level) and the shares the issue quotes; ``--json`` writes them.
 """
@@ -80,8 +82,8 @@ def path_ahead(start: np.ndarray, points: np.ndarray) -> np.ndarray:
 
 
 def audit_reset(env, td, soles: np.ndarray) -> dict[str, np.ndarray]:
-    """Per robot of one reset TensorDict: ``foot_pit``, ``base_pit``, ``hurdle_ahead`` (bool),
-    ``category`` (names)."""
+    """Per robot of one reset TensorDict: ``foot_pit``, ``base_pit``, ``hurdle_ahead``,
+    ``pit_ahead``, ``in_window`` (bool), ``category`` (names)."""
     tm, trails = env.terrain, env.trails
     pos = td[keys.BASE_POS].cpu().numpy()
     quat = td[keys.BASE_QUAT].cpu().numpy()
@@ -96,18 +98,24 @@ def audit_reset(env, td, soles: np.ndarray) -> dict[str, np.ndarray]:
                      pos[:, None, 1] + s * soles[:, 0] + c * soles[:, 1]], axis=-1)
     foot_pit = (tm.height_at(feet) < stood[:, None] - PIT_DROP).any(axis=1)
     base_pit = tm.height_at(pos[:, :2]) < stood - PIT_DROP
-    ahead = np.zeros(n, dtype=bool)
+    ahead, pit = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
     for i in range(n):
-        pts = trails.waypoints[tile[i], goal[i]: trails.count[tile[i]]]
-        ahead[i] = len(tm.boxes) > 0 and in_boxes(path_ahead(pos[i, :2], pts), tm.boxes).any()
+        path = path_ahead(pos[i, :2], trails.waypoints[tile[i], goal[i]: trails.count[tile[i]]])
+        ahead[i] = len(tm.boxes) > 0 and in_boxes(path, tm.boxes).any()
+        pit[i] = (tm.height_at(path) < stood[i] - PIT_DROP).any()
+    on = np.maximum(goal - 1, 0)
+    left = trails.length[tile] - np.where(goal > 0, trails.cum_length[tile, on], 0.0)
+    lo, hi = env.cfg.spawn_remaining
     names = np.asarray(tm.categories)[env.category.cpu().numpy()]
     return {"foot_pit": foot_pit, "base_pit": base_pit, "hurdle_ahead": ahead,
+            "pit_ahead": pit, "in_window": (left >= lo - 1e-6) & (left <= hi + 1e-6),
             "category": names}
 
 
 def audit(env, levels: list[int], resets: int) -> dict[str, dict[str, float]]:
-    """``{"<category> <level>": {"spawns", "foot_pit", "base_pit", "no_hurdle_ahead"}}``:
-    shares in % over ``resets`` resets of every robot on each level."""
+    """``{"<category> <level>": {"spawns", "foot_pit", "base_pit", "no_hurdle_ahead",
+    "no_pit_ahead", "in_window"}}``: shares in % over ``resets`` resets of every robot on
+    each level."""
     soles = sole_grid(env.scene)
     rows = {}
     for level in levels:
@@ -120,7 +128,9 @@ def audit(env, levels: list[int], resets: int) -> dict[str, dict[str, float]]:
                 "spawns": int(sel.sum()),
                 "foot_pit": 100.0 * got["foot_pit"][sel].mean(),
                 "base_pit": 100.0 * got["base_pit"][sel].mean(),
-                "no_hurdle_ahead": 100.0 * (~got["hurdle_ahead"][sel]).mean()}
+                "no_hurdle_ahead": 100.0 * (~got["hurdle_ahead"][sel]).mean(),
+                "no_pit_ahead": 100.0 * (~got["pit_ahead"][sel]).mean(),
+                "in_window": 100.0 * got["in_window"][sel].mean()}
     return rows
 
 
@@ -150,12 +160,14 @@ def main() -> None:
             env.close()
     rows = {name: {k: float(np.mean([r[name][k] for r in runs])) for k in runs[0][name]}
             for name in runs[0]}
-    print("| category level | spawns | foot over a pit % | base over a pit % | "
-          "no hurdle ahead % |\n|---|---|---|---|---|")
+    print("| category level | spawns | foot over a pit % | base over a pit % | no obstacle "
+          "ahead % | 2-10 m left % |\n|---|---|---|---|---|---|")
     for name, r in rows.items():
-        if name.split()[0] in ("gap", "hurdle"):
+        cat = name.split()[0]
+        if cat in ("gap", "hurdle"):
+            none = r["no_pit_ahead" if cat == "gap" else "no_hurdle_ahead"]
             print(f"| {name} | {r['spawns'] * args.runs:.0f} | {r['foot_pit']:.1f} | "
-                  f"{r['base_pit']:.1f} | {r['no_hurdle_ahead']:.1f} |")
+                  f"{r['base_pit']:.1f} | {none:.1f} | {r['in_window']:.1f} |")
     if args.json:
         Path(args.json).write_text(json.dumps(rows, indent=1))
 

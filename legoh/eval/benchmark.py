@@ -104,14 +104,16 @@ def eval_randomization(cfg: DictConfig) -> RandomizationConfig:
 def eval_env_settings(cfg: DictConfig, run: int) -> tuple[DictConfig, int, dict]:
     """(config, robots, env overrides) of run ``run``'s evaluation env: curriculum off,
     episodes of ``eval.seconds``, spawns ``eval.spawn_remaining`` m of path from the
-    terminus, :func:`eval_randomization` (the evaluation reach radius comes with
-    ``evaluation``)."""
+    terminus without xy jitter (protocol v2: a robot starts on its waypoint, on its support,
+    the obstacle ahead; ``spawns.trail_spawn``), :func:`eval_randomization` (the evaluation
+    reach radius comes with ``evaluation``)."""
     ev = cfg.eval
     curriculum = dataclasses.replace(OmegaConf.to_object(cfg.env.curriculum), enabled=False)
     spawn = None if ev.spawn_remaining is None else [float(x) for x in ev.spawn_remaining]
     return (run_config(cfg, run), ev.robots,
             {"episode_length_s": float(ev.seconds), "curriculum": curriculum,
-             "spawn_remaining": spawn, "randomization": eval_randomization(cfg)})
+             "spawn_remaining": spawn, "spawn_noise": 0.0,
+             "randomization": eval_randomization(cfg)})
 
 
 def student_eval_env_fn(cfg: DictConfig, student) -> Callable[[int], EnvBase]:
