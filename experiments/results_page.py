@@ -27,6 +27,7 @@ sys.path.insert(0, str(ROOT))
 
 from legoh.eval.metrics import METRICS, column_title  # noqa: E402
 from legoh.eval.paper import TABLE4, TABLE8  # noqa: E402
+from legoh.eval.protocol import of_csv  # noqa: E402
 
 PAGE = ROOT / "docs" / "results.md"
 RESULTS = ROOT / "experiments" / "results"
@@ -115,8 +116,13 @@ def students_section() -> list[str]:
             continue
         robot, stage = card["robot"], card["stage"]
         mine = read_table(PRETRAINED / f"{robot}_{stage}_eval" / "benchmark.csv")
+        mine_csv = PRETRAINED / f"{robot}_{stage}_eval" / "benchmark.csv"
         teacher_csv = PRETRAINED / f"{robot}_oracle_eval" / "benchmark.csv"
         teacher = read_table(teacher_csv) if teacher_csv.exists() else {}
+        if teacher and of_csv(teacher_csv) != of_csv(mine_csv):  # never side by side
+            print(f"[results] {robot} {stage} scored on protocol {of_csv(mine_csv)}, its "
+                  f"oracle on {of_csv(teacher_csv)}: the oracle's column is left out")
+            teacher = {}
         minutes = "n/a" if card.get("minutes") is None else f"{card['minutes']:.0f}"
         lines += [f"### {robot.upper()} student, {stage} (`pretrained/{card['file']}`)", "",
                   f"{card['frames']:,} frames, {minutes} minutes of stage-2 training on a "

@@ -3,6 +3,7 @@
     python experiments/ship_pretrained.py --robot h1 --run experiments/results/learn_hike/h1-s0
     python experiments/ship_pretrained.py --robot h1 --stage unified \
         --run experiments/results/learn_student/h1-unified-s0
+    python experiments/ship_pretrained.py --robot h1 --rescore     # the shipped file, anew
 
 ``--stage oracle`` (default) copies the run's ``oracle.pt`` (refused above 10 MB); a
 stage-2 variant (``unified``, ``ep_h``, ...) copies ``<stage>.pt`` (or ``--checkpoint``, a
@@ -11,10 +12,13 @@ its minutes are read at its iteration in the run's ``clock.csv``) without its op
 RNG states (a third of a student's file; nobody resumes a shipped student's Adam) and
 exports it as ``<robot>_<stage>.ts`` (TorchScript, ``mode=export``'s format). Then it
 benchmarks the file with the hiking protocol (the five categories of ``trail=hike``, levels
-0-4, robots placed 2-10 m of path from the terminus, randomisation on, 30 s; ``--robots`` per
-level, ``--runs`` runs) and rewrites ``pretrained/README.md`` from every shipped card
-(``pretrained/<robot>_<stage>.json``): frames, training minutes, the commit that trained it,
-the recipe and the table. ``checkpoint=pretrained`` (under the matching ``algo``) and
+0-4 x 5 variants, robots placed on their support 2-10 m of path from the terminus with the
+category's obstacle ahead, randomisation on, 30 s; ``--robots`` per level, ``--runs`` runs;
+benchmark protocol ``legoh.eval.protocol.PROTOCOL``, written into the card) and rewrites
+``pretrained/README.md`` from every shipped card (``pretrained/<robot>_<stage>.json``):
+frames, training minutes, the commit that trained it, the recipe, the protocol and the
+table. ``--rescore`` only re-benchmarks a shipped file on this code's protocol.
+``checkpoint=pretrained`` (under the matching ``algo``) and
 ``init=pretrained`` then pick the file.
 """
 
@@ -40,6 +44,7 @@ from legoh.checkpoint import save_checkpoint  # noqa: E402
 from legoh.config.compose import compose_config  # noqa: E402
 from legoh.eval.benchmark import evaluate  # noqa: E402
 from legoh.eval.cli import build_actor, for_checkpoint  # noqa: E402
+from legoh.eval.protocol import PROTOCOL, of_card  # noqa: E402
 from legoh.policies.pretrained import PRETRAINED_DIR, benchmark_protocol  # noqa: E402
 
 MAX_BYTES = 10 * 2**20
@@ -68,8 +73,14 @@ def main() -> None:
     parser.add_argument("--origin", help="what it started from (README line)")
     parser.add_argument("--main-job-only", action="store_true",
                         help="only (re)score the shipped oracle on the main job's protocol")
+    parser.add_argument("--rescore", action="store_true",
+                        help="only re-benchmark the shipped file on this code's protocol "
+                             "(its card's table, protocol and, for an oracle, main_job)")
     args = parser.parse_args()
     card_path = PRETRAINED_DIR / f"{args.robot}_{args.stage}.json"
+    if args.rescore:
+        rescore(args, card_path)
+        return
     if args.main_job_only:
         card = json.loads(card_path.read_text())
         card["main_job"] = main_job_reference(args.robot)
@@ -82,19 +93,7 @@ def main() -> None:
     src = Path(args.checkpoint) if args.checkpoint else run / f"{args.stage}.pt"
     dst = ship_file(src, args.robot, args.stage)
     state = torch.load(dst, map_location="cpu", weights_only=True)
-    cfg = compose_run(args.robot, 0, "walk", "hike", [
-        f"algo={args.stage}", f"eval.robots={args.robots}", f"eval.runs={args.runs}",
-        "eval.variants=2", "eval.levels=[0,1,2,3,4]", "eval.randomization=true",
-        "eval.seed=2000"])
-    cfg, _ = for_checkpoint(cfg, "pretrained")  # scored on its own feet
-    policy, env_fn = build_actor(cfg, "pretrained")
-    if args.stage != "oracle":
-        from legoh.export import export_student
-        export_student(policy, dst.with_suffix(".ts"), meta={"robot": args.robot,
-                                                            "algo": args.stage})
-        policy = policy.policy
-    result = evaluate(cfg, policy, PRETRAINED_DIR / f"{args.robot}_{args.stage}_eval",
-                      label=f"{args.robot}_{args.stage}", env_fn=env_fn)
+    result = ship_benchmark(args, export=dst.with_suffix(".ts"))
     minutes = clock_minutes(run / "clock.csv", int(state["iteration"]), args.minutes)
     frames = int(state["iteration"]) * int(state["config"]["algo"]["num_envs"]) * int(
         state["config"]["algo"]["steps_per_env"])
@@ -105,13 +104,47 @@ def main() -> None:
             "recipe": args.recipe or recipe.format(robot=args.robot, stage=args.stage),
             "origin": args.origin or ("from the learn_walk walker" if args.stage == "oracle"
                                       else f"distilled from `{args.robot}_oracle.pt`"),
-            "megabytes": round(dst.stat().st_size / 2**20, 2),
+            "megabytes": round(dst.stat().st_size / 2**20, 2), "protocol": PROTOCOL,
             "benchmark": Path(result["paths"]["markdown"]).read_text()}
     if args.stage == "oracle":
         card["main_job"] = main_job_reference(args.robot)
     card_path.write_text(json.dumps(card, indent=2))
     write_readme()
     print((PRETRAINED_DIR / "README.md").read_text())
+
+
+def ship_benchmark(args, export: Path | None = None) -> dict:
+    """Benchmark the shipped ``pretrained/<robot>_<stage>.pt`` on the shipping protocol
+    (``--robots`` per level, ``--runs`` runs, 5 variants a level, seed 2000) into
+    ``pretrained/<robot>_<stage>_eval``; a student is first exported to ``export`` when
+    given."""
+    cfg = compose_run(args.robot, 0, "walk", "hike", [
+        f"algo={args.stage}", f"eval.robots={args.robots}", f"eval.runs={args.runs}",
+        "eval.variants=5", "eval.levels=[0,1,2,3,4]", "eval.randomization=true",
+        "eval.seed=2000"])
+    cfg, _ = for_checkpoint(cfg, "pretrained")  # scored on its own feet
+    policy, env_fn = build_actor(cfg, "pretrained")
+    if args.stage != "oracle":
+        if export is not None:
+            from legoh.export import export_student
+            export_student(policy, export, meta={"robot": args.robot, "algo": args.stage})
+        policy = policy.policy
+    return evaluate(cfg, policy, PRETRAINED_DIR / f"{args.robot}_{args.stage}_eval",
+                    label=f"{args.robot}_{args.stage}", env_fn=env_fn)
+
+
+def rescore(args, card_path: Path) -> None:
+    """``--rescore``: the shipped file's card gets this protocol's table (and, for an
+    oracle, its main_job reference); the README is rewritten."""
+    card = json.loads(card_path.read_text())
+    result = ship_benchmark(args)
+    print(f"[ship] {card_path.name}: protocol {of_card(card)} -> {PROTOCOL}")
+    card.update(protocol=PROTOCOL, benchmark=Path(result["paths"]["markdown"]).read_text())
+    if args.stage == "oracle":
+        card["main_job"] = main_job_reference(args.robot)
+    card_path.write_text(json.dumps(card, indent=2))
+    write_readme()
+    print(card["benchmark"])
 
 
 def clock_minutes(clock: Path, iteration: int, default: float | None) -> float | None:
@@ -188,11 +221,17 @@ def write_readme() -> None:
         stage = c.get("stage", "oracle")
         minutes = "n/a" if c["minutes"] is None else f"{c['minutes']:.0f}"
         origin = c.get("origin", "from the learn_walk walker")
+        version = of_card(c)
+        stale = ("" if version == PROTOCOL else f": not comparable with {PROTOCOL} figures; "
+                 f"re-score with `python experiments/ship_pretrained.py --robot {c['robot']} "
+                 f"--stage {stage} --rescore`")
         lines += [f"## `{c['file']}` ({c['robot'].upper()} {stage}, {c['megabytes']} MB)", "",
                   f"- {c['frames']:,} frames ({c['iteration']} iterations), {minutes} minutes "
                   f"of training on a 2-core CPU, {origin}",
                   f"- trained by commit `{c['commit']}` (its last session): {c['recipe']}; "
-                  f"run folder `{c['run']}`", "", c["benchmark"], ""]
+                  f"run folder `{c['run']}`",
+                  f"- scored on benchmark protocol **{version}**{stale} (docs/metrics.md)",
+                  "", c["benchmark"], ""]
     (PRETRAINED_DIR / "README.md").write_text("\n".join(lines))
 
 

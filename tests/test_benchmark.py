@@ -25,6 +25,7 @@ from legoh.eval.benchmark import (
 from legoh.eval.cli import build_actor, main
 from legoh.eval.metrics import METRICS, column_title, distance_walked
 from legoh.eval.plots import plot_trajectories
+from legoh.eval.protocol import PROTOCOL, ProtocolMismatch, of_csv
 from legoh.eval.study import read_overall
 from legoh.modules.actor_critic import OracleInputDims
 from tests.conftest import compose_config
@@ -119,7 +120,8 @@ def test_evaluation_writes_the_tables_and_picture(tiny: tuple) -> None:
     with open(paths["csv"], encoding="utf-8", newline="") as f:
         table = list(csv.reader(f))
     assert table[0] == ["category"] + [f"{column_title(m)} {s}" for m in METRICS
-                                       for s in ("mean", "std")]
+                                       for s in ("mean", "std")] + ["protocol"]
+    assert {row[-1] for row in table[1:]} == {PROTOCOL} and result["protocol"] == PROTOCOL
     assert [row[0] for row in table[1:]] == ["flat", OVERALL, "level 0"]  # per level too
     with open(paths["runs_csv"], encoding="utf-8", newline="") as f:
         runs = list(csv.DictReader(f))  # each run's own values, what a study pools
@@ -129,6 +131,8 @@ def test_evaluation_writes_the_tables_and_picture(tiny: tuple) -> None:
     assert float(runs[1][sr]) == pytest.approx(float(table[2][1]))  # one run: its mean
     md = paths["markdown"].read_text(encoding="utf-8")
     assert "| flat |" in md and "| overall |" in md and "| level 0 |" in md
+    assert f"benchmark protocol {PROTOCOL}" in md
+    assert of_csv(paths["csv"]) == of_csv(paths["runs_csv"]) == PROTOCOL
     assert paths["trajectories"].read_bytes()[:4] == b"\x89PNG"
 
 
@@ -188,6 +192,15 @@ def test_compare_puts_policies_side_by_side(tiny: tuple) -> None:
     assert compare({"a": result}, row="level 0")["a"] == result["levels"]["level 0"]
     with pytest.raises(KeyError, match="ditch"):
         compare({"a": result}, row="ditch")
+
+
+def test_compare_refuses_results_of_two_protocols(tiny: tuple) -> None:
+    """A result of another protocol (here one from before the protocol was named: v1) is
+    never set beside this one: the error names both versions."""
+    _, _, result = tiny
+    old = {k: v for k, v in result.items() if k != "protocol"}
+    with pytest.raises(ProtocolMismatch, match=f"v1: old; {PROTOCOL}: new"):
+        compare({"new": result, "old": old})
 
 
 def test_cli_loads_the_checkpoint_actor(tiny: tuple, tmp_path: Path) -> None:

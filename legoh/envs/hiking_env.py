@@ -26,6 +26,7 @@ from legoh import keys
 from legoh.config import EnvConfig, RobotConfig, SimConfig, TrailConfig
 from legoh.config.env import LevelRule
 from legoh.envs.mdp import events, observations, rewards, support
+from legoh.envs.mdp.spawns import SpawnSupport
 from legoh.envs.mdp.state import (
     AirTime,
     Goals,
@@ -124,6 +125,7 @@ class HikingEnv(EnvBase):
         self.goal_offsets = torch.arange(observations.NUM_EXPERT_GOALS, device=dev)
         self.physics_features = t(self.physics.as_features(), torch.float32)
         self.push_every = max(1, int(round(self.cfg.randomization.push_interval_s / self.dt)))
+        self.spawn_support = SpawnSupport(self)  # where a robot may start along a trail
 
     def _terms(self) -> None:
         """Per-env bookkeeping and the stateful terms; then the observation table."""

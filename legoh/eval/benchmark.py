@@ -48,6 +48,7 @@ from legoh.eval.metrics import (
     write_runs_csv,
 )
 from legoh.eval.plots import outcome_labels, plot_trajectories
+from legoh.eval.protocol import LEGACY, PROTOCOL, same_protocol
 from legoh.policies.student import make_student_env, state_shapes
 from legoh.threads import torch_threads
 
@@ -55,8 +56,8 @@ OVERALL = "overall"
 # Bumped by a change that moves the scores of the same policy under the same ``eval``
 # settings (spawns, randomisation draws, metric definitions): a score cached under another
 # version (learn_student's teacher.json) is stale. 2: the randomisation drawn from the
-# first step (``from_first_step``).
-BENCHMARK_VERSION = 2
+# first step (``from_first_step``). 3: protocol v2's spawns (``legoh.eval.protocol``).
+BENCHMARK_VERSION = 3
 
 
 @dataclasses.dataclass(frozen=True)
@@ -104,14 +105,16 @@ def eval_randomization(cfg: DictConfig) -> RandomizationConfig:
 def eval_env_settings(cfg: DictConfig, run: int) -> tuple[DictConfig, int, dict]:
     """(config, robots, env overrides) of run ``run``'s evaluation env: curriculum off,
     episodes of ``eval.seconds``, spawns ``eval.spawn_remaining`` m of path from the
-    terminus, :func:`eval_randomization` (the evaluation reach radius comes with
-    ``evaluation``)."""
+    terminus without xy jitter (protocol v2: a robot starts on its waypoint, on its support,
+    the obstacle ahead; ``spawns.trail_spawn``), :func:`eval_randomization` (the evaluation
+    reach radius comes with ``evaluation``)."""
     ev = cfg.eval
     curriculum = dataclasses.replace(OmegaConf.to_object(cfg.env.curriculum), enabled=False)
     spawn = None if ev.spawn_remaining is None else [float(x) for x in ev.spawn_remaining]
     return (run_config(cfg, run), ev.robots,
             {"episode_length_s": float(ev.seconds), "curriculum": curriculum,
-             "spawn_remaining": spawn, "randomization": eval_randomization(cfg)})
+             "spawn_remaining": spawn, "spawn_noise": 0.0,
+             "randomization": eval_randomization(cfg)})
 
 
 def student_eval_env_fn(cfg: DictConfig, student) -> Callable[[int], EnvBase]:
@@ -221,7 +224,8 @@ def evaluate(cfg: DictConfig, actor, out_dir: str | Path, label: str = "policy",
     Returns:
         ``{"label", "rows": {category..., "overall": {metric: (mean, std)}},
         "levels": {"level <l>": ...}, "runs": [per-run rows], "paths": {"markdown",
-        "csv", "runs_csv", "trajectories"}, "wall_s", "steps"}``.
+        "csv", "runs_csv", "trajectories"}, "wall_s", "steps", "protocol"}``; every file
+        names the protocol (``legoh.eval.protocol.PROTOCOL``).
     """
     ev = cfg.eval
     seed, source = eval_seed(cfg)
@@ -264,20 +268,23 @@ def evaluate(cfg: DictConfig, actor, out_dir: str | Path, label: str = "policy",
     levels = {k: summary[k] for k, lv in zip(names, is_level, strict=True) if lv}
     title = (f"{label} on {cfg.trail.name} ({cfg.robot.name}): {ev.robots} robots x "
              f"{ev.seconds:g} s, levels {list(ev.levels)} x {ev.variants} variants, "
-             f"{ev.runs} run(s), mean ± std over runs")
+             f"{ev.runs} run(s), mean ± std over runs, benchmark protocol {PROTOCOL}")
     paths["markdown"] = out_dir / "benchmark.md"
     paths["markdown"].write_text(to_markdown(rows, "Category", title) + "\n"
                                  + to_markdown(levels, "Level", "Per level"), encoding="utf-8")
-    paths["csv"] = write_csv(out_dir / "benchmark.csv", {**rows, **levels}, label="category")
-    paths["runs_csv"] = write_runs_csv(out_dir / "benchmark_runs.csv", runs)
+    paths["csv"] = write_csv(out_dir / "benchmark.csv", {**rows, **levels}, label="category",
+                             protocol=PROTOCOL)
+    paths["runs_csv"] = write_runs_csv(out_dir / "benchmark_runs.csv", runs, protocol=PROTOCOL)
     return {"label": label, "rows": rows, "levels": levels, "runs": runs, "paths": paths,
-            "wall_s": time.perf_counter() - t0, "steps": steps}
+            "wall_s": time.perf_counter() - t0, "steps": steps, "protocol": PROTOCOL}
 
 
 def compare(results: Mapping[str, dict], row: str = OVERALL
             ) -> dict[str, dict[str, tuple[float, float]]]:
     """Rows of a methods table: ``{label: summary of row}`` (``row``: ``"overall"``, a
-    category name or ``"level <l>"``), for :func:`legoh.eval.metrics.to_markdown`."""
+    category name or ``"level <l>"``), for :func:`legoh.eval.metrics.to_markdown`. Raises
+    ``ProtocolMismatch`` when the results were scored on different protocols."""
+    same_protocol({label: r.get("protocol", LEGACY) for label, r in results.items()})
     table = {}
     for label, result in results.items():
         merged = {**result["rows"], **result.get("levels", {})}

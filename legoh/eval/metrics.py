@@ -303,29 +303,35 @@ def write_markdown(path: str | Path, rows: Rows, label: str = "Method",
     return path
 
 
-def write_csv(path: str | Path, rows: Rows, label: str = "method") -> Path:
+def write_csv(path: str | Path, rows: Rows, label: str = "method",
+              protocol: str | None = None) -> Path:
     """A CSV table: ``label`` then, per metric, ``"<title> mean"`` and ``"<title> std"``
-    columns (e.g. ``"SR (%) ↑ mean"``), full precision; returns the path."""
+    columns (e.g. ``"SR (%) ↑ mean"``), full precision, then a ``protocol`` column when
+    ``protocol`` is given (``legoh.eval.protocol``); returns the path."""
     path = Path(path)
     header = [label] + [f"{column_title(m)} {s}" for m in METRICS for s in ("mean", "std")]
+    tail = [] if protocol is None else [protocol]
     with path.open("w", newline="", encoding="utf-8") as f:
         w = csv.writer(f)
-        w.writerow(header)
+        w.writerow(header + (["protocol"] if tail else []))
         for name, stats in rows.items():
-            w.writerow([name, *(repr(float(v)) for m in METRICS for v in stats[m])])
+            w.writerow([name, *(repr(float(v)) for m in METRICS for v in stats[m]), *tail])
     return path
 
 
-def write_runs_csv(path: str | Path, runs: Sequence[Mapping[str, Mapping[str, float]]]
-                   ) -> Path:
+def write_runs_csv(path: str | Path, runs: Sequence[Mapping[str, Mapping[str, float]]],
+                   protocol: str | None = None) -> Path:
     """Every run's own values: ``run``, ``category`` (or ``overall``, ``level <l>``), then one
-    column per metric (its title). What :func:`write_csv`'s mean and std summarise, kept so
-    that runs of several jobs pool exactly (a metric NaN in some runs included)."""
+    column per metric (its title), then ``protocol`` when given. What :func:`write_csv`'s
+    mean and std summarise, kept so that runs of several jobs pool exactly (a metric NaN in
+    some runs included)."""
     path = Path(path)
+    tail = [] if protocol is None else [protocol]
     with path.open("w", newline="", encoding="utf-8") as f:
         w = csv.writer(f)
-        w.writerow(["run", "category", *map(column_title, METRICS)])
+        w.writerow(["run", "category", *map(column_title, METRICS)]
+                   + (["protocol"] if tail else []))
         for r, rows in enumerate(runs):
             for name, values in rows.items():
-                w.writerow([r, name, *(repr(float(values[m])) for m in METRICS)])
+                w.writerow([r, name, *(repr(float(values[m])) for m in METRICS), *tail])
     return path

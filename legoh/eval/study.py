@@ -25,6 +25,7 @@ import numpy as np
 from omegaconf import OmegaConf
 
 from legoh.eval.metrics import METRICS, column_title, summarize, to_markdown
+from legoh.eval.protocol import of_csv, same_protocol
 
 STUDIES = {  # study -> the config key that names a row of its table
     "ablation_temporal": "algo.name",
@@ -123,7 +124,8 @@ def gather(sweep_dir: str | Path, group_by: str = "algo.name",
     "frames_per_s", "iterations"}``: ``rows`` every category row of its benchmark
     (:func:`read_rows`), ``run_rows`` its runs' own values (:func:`read_runs`; None for a
     job written before ``benchmark_runs.csv``), ``metrics`` the overall means, ``runs`` its
-    ``eval.runs``. Jobs without a ``benchmark.csv`` (unfinished) are skipped.
+    ``eval.runs``, ``protocol`` its benchmark's protocol. Jobs without a ``benchmark.csv``
+    (unfinished) are skipped; jobs scored on two protocols raise ``ProtocolMismatch``.
     """
     groups: dict[str, list[dict]] = {}
     for cfg_path in sorted(Path(sweep_dir).glob("*/.hydra/config.yaml")):
@@ -146,9 +148,10 @@ def gather(sweep_dir: str | Path, group_by: str = "algo.name",
             "run_rows": read_runs(runs_csv) if runs_csv.is_file() else None,
             "metrics": {m: mean for m, (mean, _) in rows["overall"].items()},
             "frames": int(cfg.algo.total_frames), "frames_per_s": rate,
-            "iterations": iters})
+            "iterations": iters, "protocol": of_csv(bench)})
     if not groups:
         raise FileNotFoundError(f"no finished jobs (with benchmark.csv) under {sweep_dir}")
+    same_protocol({j["dir"]: j["protocol"] for jobs in groups.values() for j in jobs})
     return groups
 
 

@@ -7,6 +7,8 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
+from legoh.eval.protocol import LEGACY, PROTOCOL, warn_if_other
+
 PRETRAINED_DIR = Path(__file__).resolve().parents[2] / "pretrained"
 
 
@@ -56,21 +58,27 @@ def init_checkpoint(value: str | None, robot: str) -> Path | None:
 
 
 def benchmark_protocol(cfg: DictConfig) -> dict:
-    """What makes two benchmark tables comparable: robot, trail, the ``eval`` settings and
-    the seed the evaluation follows."""
-    return {"robot": str(cfg.robot.name), "trail": str(cfg.trail.name), "seed": int(cfg.seed),
-            "eval": OmegaConf.to_container(cfg.eval, resolve=True)}
+    """What makes two benchmark tables comparable: the protocol's version
+    (``legoh.eval.protocol``), robot, trail, the ``eval`` settings and the seed the
+    evaluation follows."""
+    return {"version": PROTOCOL, "robot": str(cfg.robot.name), "trail": str(cfg.trail.name),
+            "seed": int(cfg.seed), "eval": OmegaConf.to_container(cfg.eval, resolve=True)}
 
 
 def shipped_reference(cfg: DictConfig, stage: str = "oracle") -> dict | None:
     """The shipped policy's own rows (``{"overall" | "level <l>": {metric: [mean, std]}}``)
     on this run's benchmark protocol, from its card ``pretrained/<robot>_<stage>.json``
     (``experiments/ship_pretrained.py`` records the main job's protocol there); None when no
-    card records this protocol."""
+    card records this protocol. A card scored on another protocol version says so (a
+    warning naming both versions)."""
     card = PRETRAINED_DIR / f"{cfg.robot.name}_{stage}.json"
     if not card.is_file():
         return None
     ref = json.loads(card.read_text()).get("main_job")
-    if not ref or ref["protocol"] != benchmark_protocol(cfg):
+    if not ref:
+        return None
+    if not warn_if_other(f"{card}'s main_job reference", ref["protocol"].get("version", LEGACY)):
+        return None
+    if ref["protocol"] != benchmark_protocol(cfg):
         return None
     return ref["rows"]

@@ -13,18 +13,13 @@ import torch
 from legoh.config.env import LevelRule
 from legoh.envs.curriculum import update_levels
 from legoh.envs.math3d import wrap_angle
-
-SPAWN_YAW_NOISE = 0.3  # rad, uniform either side of the trail's start heading
-SPAWN_LIFT = 0.02  # m above the standing height: no initial ground penetration
-
-
-def uniform(env, low: float, high: float, *shape: int) -> torch.Tensor:
-    """U(low, high) samples of ``shape`` from the env's generator, physics dtype. Drawn in
-    float64 whatever the backend: float32 draws of one generator state differ, and the same
-    seed must give the same episode on both backends."""
-    u = torch.rand(*shape, generator=env.gen, device=env.device, dtype=torch.float64
-                   ).to(env.dtype)
-    return low + (high - low) * u
+from legoh.envs.mdp.spawns import (  # noqa: F401 (spawn_waypoint: re-exported for callers)
+    SPAWN_LIFT,
+    SPAWN_YAW_NOISE,
+    spawn_waypoint,
+    trail_spawn,
+    uniform,
+)
 
 
 def randomizing(env) -> bool:
@@ -133,50 +128,29 @@ def curriculum(env, ids: torch.Tensor) -> None:
                                     env.terrain.levels, env.gen, cur.up, cur.down)
 
 
-def spawn_waypoint(env, tiles: torch.Tensor, remaining: list[float]) -> torch.Tensor:
-    """Index (K,) of the expert waypoint to spawn on for each of ``tiles`` (K,): uniform
-    among the tile's waypoints whose remaining path to the terminus (m) lies in
-    ``remaining`` = [lo, hi], else among those closest to that range; never the terminus.
-    -1 for a tile whose only waypoint is its terminus (spawn at the trail start)."""
-    t = env.trails_t
-    width = t.waypoints.shape[1]
-    left = t.length[tiles, None] - t.cum_length[tiles]  # (K, W) m of path still to walk
-    allowed = torch.arange(width, device=env.device)[None] < (t.count[tiles, None] - 1)
-    lo, hi = remaining
-    miss = torch.where(allowed, torch.clamp(torch.maximum(lo - left, left - hi), min=0.0),
-                       torch.inf)  # (K, W) m outside [lo, hi]; inf: not a spawn point
-    best = allowed & (miss <= miss.min(1, keepdim=True).values + 1e-6)
-    score = uniform(env, 0.0, 1.0, len(tiles), width)
-    pick = torch.where(best, score, -1.0).argmax(1)  # uniform among the best
-    return torch.where(allowed.any(1), pick, -1)
-
-
 def spawn(env, ids: torch.Tensor) -> None:
     """A new tile of the env's category and level, a jittered start pose on it, the
     default joint pose, and the physics draw (nominal until the schedule starts).
 
-    The start pose: the trail start, facing along the trail; with ``env.spawn_remaining``
-    an expert waypoint (:func:`spawn_waypoint`, safe ground by construction) facing the
-    next one, whose index the goals term starts from.
+    The start pose: the trail start, facing along the trail, jittered; with
+    ``env.spawn_remaining`` a safe spawn along the trail (``spawns.trail_spawn``: on its
+    support, the category's obstacle ahead, the height of that support) facing the next
+    waypoint, whose index the goals term starts from.
     """
     k, tm, t = len(ids), env.terrain, env.trails_t
     variant = torch.randint(0, tm.variants, (k,), generator=env.gen, device=env.device)
     tiles = (env.category[ids] * tm.levels + env.level[ids]) * tm.variants + variant
     env.goals.tile[ids] = tiles
-    start, heading = t.start[tiles].clone(), t.start_yaw[tiles]
-    first = torch.zeros(k, dtype=torch.int64, device=env.device)
     if env.cfg.spawn_remaining is not None:
-        at = spawn_waypoint(env, tiles, env.cfg.spawn_remaining)
-        on, i = at >= 0, at.clamp(min=0)
-        here = t.waypoints[tiles, i]
-        ahead = t.waypoints[tiles, (i + 1).clamp(max=t.waypoints.shape[1] - 1)] - here
-        start[:, :2] = torch.where(on[:, None], here, start[:, :2])
-        heading = torch.where(on, torch.atan2(ahead[:, 1], ahead[:, 0]), heading)
-        first = torch.where(on, at + 1, first)
+        pose = trail_spawn(env, tiles, env.cfg.spawn_remaining, env.cfg.spawn_noise)
+        start, yaw, first = pose.xyz, pose.yaw, pose.first
+    else:  # the flat start pad: any jitter stands on it
+        start, first = t.start[tiles].clone(), torch.zeros(k, dtype=torch.int64,
+                                                           device=env.device)
+        start[:, :2] += uniform(env, -1.0, 1.0, k, 2) * env.cfg.spawn_noise
+        start[:, 2] = env.ground.bilinear(start[:, :2]) + env.scene.stand_height + SPAWN_LIFT
+        yaw = t.start_yaw[tiles] + uniform(env, -SPAWN_YAW_NOISE, SPAWN_YAW_NOISE, k)
     env.goals.start[ids] = first
-    start[:, :2] += uniform(env, -1.0, 1.0, k, 2) * env.cfg.spawn_noise
-    start[:, 2] = env.ground.bilinear(start[:, :2]) + env.scene.stand_height + SPAWN_LIFT
-    yaw = heading + uniform(env, -SPAWN_YAW_NOISE, SPAWN_YAW_NOISE, k)
     qpos = env.qpos0.expand(k, -1).clone()
     qpos[:, 0:3] = start
     qpos[:, 3], qpos[:, 6] = torch.cos(yaw / 2), torch.sin(yaw / 2)

@@ -136,13 +136,16 @@ class TrailTable:
     category: np.ndarray  # (T,) index into the map's categories
     level: np.ndarray  # (T,)
     variant: np.ndarray  # (T,)
+    ahead: np.ndarray  # (T, W) bool: the category's obstacle lies ahead (``Tile.ahead``)
 
     @classmethod
     def from_map(cls, tm: TerrainMap) -> TrailTable:
         width = max(len(t.waypoints) for t in tm.tiles)
         wp = np.zeros((len(tm.tiles), width, 2))
         cum = np.zeros((len(tm.tiles), width))
+        ahead = np.zeros((len(tm.tiles), width), dtype=bool)  # padding: never a spawn point
         for k, t in enumerate(tm.tiles):
+            ahead[k, : len(t.ahead)] = t.ahead
             pts = t.waypoints[:, :2]
             wp[k, : len(pts)], wp[k, len(pts):] = pts, pts[-1]
             seg = np.linalg.norm(np.diff(np.vstack([t.start[:2], pts]), axis=0), axis=1)
@@ -158,13 +161,16 @@ class TrailTable:
             middle=np.array([t.middle[:2] for t in tm.tiles]),
             category=np.array([tm.categories.index(t.category) for t in tm.tiles]),
             level=np.array([t.level for t in tm.tiles]),
-            variant=np.array([t.variant for t in tm.tiles]),
+            variant=np.array([t.variant for t in tm.tiles]), ahead=ahead,
         )
 
     def to(self, device: torch.device, dtype: torch.dtype) -> TrailTable:
-        """The same table as tensors on ``device`` (floats in ``dtype``, counts int64)."""
+        """The same table as tensors on ``device`` (floats in ``dtype``, counts int64, flags
+        bool)."""
         def conv(x: np.ndarray) -> torch.Tensor:
             t = torch.as_tensor(x, device=device)
+            if t.dtype == torch.bool:
+                return t
             return t.to(dtype) if t.is_floating_point() else t.long()
 
         return TrailTable(**{f.name: conv(getattr(self, f.name)) for f in fields(self)})

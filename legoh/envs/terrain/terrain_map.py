@@ -14,6 +14,7 @@ import numpy as np
 from scipy.ndimage import distance_transform_edt, map_coordinates
 
 from legoh.envs.terrain.goals import expert_goals, middle_index
+from legoh.envs.terrain.obstacles import footing_mask, obstacle_ahead, obstacle_mask
 from legoh.envs.terrain.trails import TileLayout, check_category, compose_tile
 
 SKIRT_RAMP = 0.75  # share of the half-border the skirt ramps over; the rest stays flat at 0
@@ -51,6 +52,9 @@ class Tile:
     length: float  # m, start -> waypoints -> terminus
     path: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # (P, 3) dense path
     plan: list = field(default_factory=list)  # [(primitive, segment length m), ...]
+    # (W,) bool: the category's obstacle lies on the path from waypoint w to the terminus
+    # (``obstacles.obstacle_ahead``): where protocol v2 may spawn a robot
+    ahead: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
 
 
 @dataclass
@@ -67,6 +71,9 @@ class TerrainMap:
     categories: list[str]
     levels: int
     variants: int
+    # (nx, ny) bool, True where a foot may start: not over a pit or inside a ditch, not
+    # under a hurdle or in a trunk (``obstacles.footing_mask``); the borders are flat ground
+    footing: np.ndarray | None = None
 
     def height_at(self, xy: np.ndarray) -> np.ndarray:
         """Bilinear ground height (m) at world points ``xy`` (..., 2); clamped at the map
@@ -148,6 +155,7 @@ def build_terrain_map(cfg, seed: int) -> TerrainMap:
     heights = np.zeros((cols * (ntx + 2 * half) + 2 * half, rows * (nty + 2 * half) + 2 * half),
                        dtype=np.float32)
     origin = np.zeros(2)
+    footing = np.ones(heights.shape, dtype=bool)
     tiles, boxes, cyls = [], [], []
     for c, category in enumerate(categories):
         for level in range(levels):
@@ -158,6 +166,7 @@ def build_terrain_map(cfg, seed: int) -> TerrainMap:
                 lay = compose_tile(category, difficulty(level, levels), rng, cfg)
                 heights[i0 - half:i0 + ntx + half, j0 - half:j0 + nty + half] = _skirted(
                     lay.heights, half, SKIRT_RAMP * half)
+                footing[i0:i0 + ntx, j0:j0 + nty] = footing_mask(lay, res)
                 corner = origin + np.array([i0, j0]) * res
                 tile, b, k = _make_tile(lay, cfg, category, level, variant, corner, rng)
                 tiles.append(tile)
@@ -165,7 +174,8 @@ def build_terrain_map(cfg, seed: int) -> TerrainMap:
                 cyls.append(k)
     return TerrainMap(heights, res, origin, np.concatenate(boxes).astype(np.float32),
                       np.concatenate(cyls).astype(np.float32), tiles,
-                      edge_mask(heights, res, cfg.edge_grade), categories, levels, variants)
+                      edge_mask(heights, res, cfg.edge_grade), categories, levels, variants,
+                      footing)
 
 
 def _make_tile(lay: TileLayout, cfg, category: str, level: int, variant: int,
@@ -193,7 +203,8 @@ def _make_tile(lay: TileLayout, cfg, category: str, level: int, variant: int,
     rng.random()  # the draw of a per-tile friction no scene ever used: kept, maps stay as they were
     tile = Tile(category, level, variant, corner.copy(),
                 np.array([cfg.tile_length, cfg.tile_width]), start, 0.0, waypoints,
-                waypoints[-1].copy(), waypoints[mid].copy(), length, world(path), lay.plan)
+                waypoints[-1].copy(), waypoints[mid].copy(), length, world(path), lay.plan,
+                obstacle_ahead(wps, obstacle_mask(lay, category, res, cfg.start_pad), res))
     return tile, boxes, cyl
 
 
