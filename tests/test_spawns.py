@@ -159,3 +159,32 @@ def test_the_hurdle_check_sees_a_box_on_the_path() -> None:
     through = path_ahead(np.zeros(2), np.array([[2.0, 0.0]]))
     beside = path_ahead(np.array([0.0, 3.0]), np.array([[2.0, 3.0]]))
     assert in_boxes(through, box).any() and not in_boxes(beside, box).any()
+
+
+@pytest.mark.parametrize("share", [0.0, 0.5])
+def test_training_spawns_a_share_along_the_trail_on_support(share: float,
+                                                            monkeypatch) -> None:
+    """``env.spawn_along``: that share of training robots starts along the trail (2 m or
+    more of path left), every one on its support with a pit ahead; the curriculum counts
+    the path covered from the spawn point (0 at the spawn, not the path behind it)."""
+    from legoh.envs.hiking_env import make_env
+
+    cfg = compose_config("trail=gap", "trail.levels=3", "trail.variants=2",
+                         f"env.spawn_along={share}", "seed=3")
+    env = make_env(cfg, num_envs=48)
+    env.set_level(torch.arange(48) % 3)
+    td = env.reset()
+    along = (env.spawned_at > 0).numpy()
+    if share == 0.0:
+        assert not along.any()
+    else:
+        assert 0.25 < along.mean() < 0.75
+        monkeypatch.setattr(env.cfg, "spawn_remaining", [0.0, 1e9])  # the audit's window
+        got = audit_reset(env, td, sole_grid(env.scene))
+        assert not got["foot_pit"][along].any() and not got["base_pit"][along].any()
+        assert got["pit_ahead"][along].all()
+        t = env.trails_t
+        from_spawn = (env.goals.progress(env.sim.qpos[:, :2]) * t.length[env.goals.tile]
+                      - env.spawned_at)
+        assert from_spawn.abs().max() < 1.0  # the spawn jitter at most
+    env.close()

@@ -302,6 +302,10 @@ class EnvConfig:
     # does; never the terminus), facing the next one. None: at the trail start (training).
     # The curriculum's covered distance still counts from the trail start.
     spawn_remaining: list[float] | None = None
+    # training (spawn_remaining None): this share of robots spawns along the trail instead
+    # of at its start, on support with the category's obstacle ahead (mdp.spawns), so
+    # training sees the far half of a trail; the curriculum counts from the spawn point
+    spawn_along: float = 0.5
     divergence_qvel: float = 1.0e3  # |qvel| above this counts as a diverged simulation
     # base and foot heights (base_height, feet_swing_height, feet_phase, the low-base
     # termination) against the ground straight below or the support (HeightReference)

@@ -116,6 +116,7 @@ RANGES: list[tuple[str, Range]] = [
     ("env.randomization.*", NON_NEGATIVE),  # offsets, speeds, delays, step counts
     ("env.curriculum.*", NON_NEGATIVE),
     ("env.spawn_noise", NON_NEGATIVE), ("env.spawn_remaining", NON_NEGATIVE_INTERVAL),
+    ("env.spawn_along", FRACTION),
     ("env.air_time_target", NON_NEGATIVE),
     ("env.edge_min_level", NON_NEGATIVE),
     ("env.command.*", NON_NEGATIVE), ("env.gait.swing_height", NON_NEGATIVE),

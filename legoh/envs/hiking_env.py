@@ -137,6 +137,7 @@ class HikingEnv(EnvBase):
                       if c.curriculum.enabled else torch.zeros(n, dtype=torch.int64, device=dev))
         self.steps = torch.zeros(n, dtype=torch.int64, device=dev)
         self.episode_metres = torch.zeros(n, dtype=dt, device=dev)  # keys.EPISODE_METRES
+        self.spawned_at = torch.zeros(n, dtype=dt, device=dev)  # m of path behind the spawn
         # the last step's failures (falls): the randomisation gate counts them
         self.fell_last = torch.zeros(n, dtype=torch.bool, device=dev)
         self.ctrl = self.default_pose.expand(n, -1).clone()

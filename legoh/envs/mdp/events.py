@@ -21,6 +21,10 @@ from legoh.envs.mdp.spawns import (  # noqa: F401 (spawn_waypoint: re-exported f
     uniform,
 )
 
+# m of expert path a training robot spawned along the trail has left at least: room to
+# cross what lies ahead before the terminus
+ALONG_MIN_LEFT = 2.0
+
 
 def randomizing(env) -> bool:
     """Physics draws and pushes are on (the randomisation strength is above 0)."""
@@ -119,9 +123,10 @@ def curriculum(env, ids: torch.Tensor) -> None:
         return
     t = env.trails_t
     tile = env.goals.tile[done]
-    covered = env.goals.progress(env.sim.qpos[:, 0:2])[done] * t.length[tile]
+    start = env.spawned_at[done]  # m of path behind the spawn point
+    covered = env.goals.progress(env.sim.qpos[:, 0:2])[done] * t.length[tile] - start
     expected = torch.clamp(env.command.speed[done] * env.cfg.episode_length_s,
-                           max=t.length[tile])
+                           max=t.length[tile] - start)
     reached = torch.linalg.vector_norm(t.terminus[tile] - env.sim.qpos[done, 0:2], dim=1) < (
         env.reach_radius)
     env.level[done] = update_levels(env.level[done], covered, expected, reached,
@@ -150,6 +155,14 @@ def spawn(env, ids: torch.Tensor) -> None:
         start[:, :2] += uniform(env, -1.0, 1.0, k, 2) * env.cfg.spawn_noise
         start[:, 2] = env.ground.bilinear(start[:, :2]) + env.scene.stand_height + SPAWN_LIFT
         yaw = t.start_yaw[tiles] + uniform(env, -SPAWN_YAW_NOISE, SPAWN_YAW_NOISE, k)
+        # training: a share of robots along the trail, so the far half is seen too
+        along = chance(env, env.cfg.spawn_along, k)
+        if along.any():
+            pose = trail_spawn(env, tiles[along], [ALONG_MIN_LEFT, float("inf")],
+                               env.cfg.spawn_noise)
+            start[along], yaw[along], first[along] = pose.xyz, pose.yaw, pose.first
+    # m of expert path behind the spawn point: the curriculum counts from here
+    env.spawned_at[ids] = t.cum_length[tiles, (first - 1).clamp(min=0)] * (first > 0)
     env.goals.start[ids] = first
     qpos = env.qpos0.expand(k, -1).clone()
     qpos[:, 0:3] = start
