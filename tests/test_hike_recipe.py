@@ -44,9 +44,30 @@ def test_curriculum_expects_the_commanded_speed_times_the_episode() -> None:
     env.level[:] = 0
     k = int((env.trails_t.cum_length[env.goals.tile[0]] > 9.0).nonzero()[0])
     _place_on_waypoint(env, ids, k)
+    env.spawned_at[:] = 0.0  # both started at the trail start
     env.steps[:] = 100
     events.curriculum(env, ids)
     assert env.level.tolist() == [1, 1]
+    env.close()
+
+
+def test_curriculum_counts_from_the_spawn_point() -> None:
+    """A robot spawned along the trail (env.spawn_along) is judged on the path it covered
+    from its spawn point: the same place past 9 m of path promotes a robot that started at
+    the trail start and demotes one that started 1 m before it."""
+    env = make_env(compose_config("trail=randommix", *SMALL), num_envs=2)
+    env.reset()
+    ids = torch.arange(2)
+    env.command.speed[:] = 0.5  # expected: 10 m, or the path left from the spawn
+    env.level[:] = torch.tensor([0, 1])  # up from 0, down from 1 (SMALL has two levels)
+    tile = env.goals.tile[0]
+    k = int((env.trails_t.cum_length[tile] > 9.0).nonzero()[0])
+    _place_on_waypoint(env, ids, k)
+    here = env.trails_t.cum_length[env.goals.tile, k]  # m of path to waypoint k, per env
+    env.spawned_at[:] = torch.stack([torch.zeros_like(here[0]), here[1] - 1.0])
+    env.steps[:] = 100
+    events.curriculum(env, ids)
+    assert env.level.tolist() == [1, 0]
     env.close()
 
 
