@@ -186,6 +186,7 @@ class GapGeometry:
     stagger: Ramp  # sideways shift of staggered stones, alternating (not drawn)
     gap: Ramp  # full-width gap between two platforms of ``gaps``
     hurdle: Ramp  # hurdle height
+    mound: Ramp  # mound height (RandomMix's hurdle in the ground: stepped over as well)
     ditch_top: Ramp | None  # ditch width lip to lip; None: whatever its walls make (v1)
 
 
@@ -200,11 +201,13 @@ GEOMETRIES: dict[str, GapGeometry] = {
     "v1": GapGeometry(
         pit_depth=Ramp(PIT_DEPTH, PIT_DEPTH), stone_size=Ramp(0.8, 0.5, 0.45, 0.85),
         stone_gap=Ramp(0.05, 0.55, 0.045, 0.6), stagger=Ramp(0.15, 0.35),
-        gap=Ramp(0.1, 0.7, 0.08, 0.75), hurdle=Ramp(0.05, 0.40, 0.04, 0.42), ditch_top=None),
+        gap=Ramp(0.1, 0.7, 0.08, 0.75), hurdle=Ramp(0.05, 0.40, 0.04, 0.42),
+        mound=Ramp(0.05, 0.40, 0.04, 0.42), ditch_top=None),
     "v2": GapGeometry(
         pit_depth=Ramp(0.2, PIT_DEPTH), stone_size=Ramp(1.6, 0.55, 0.5, 1.7),
-        stone_gap=Ramp(0.05, 0.5, 0.045, 0.55), stagger=Ramp(0.05, 0.2),
+        stone_gap=Ramp(0.05, 0.45, 0.045, 0.5), stagger=Ramp(0.05, 0.2),
         gap=Ramp(0.1, 0.5, 0.08, 0.55), hurdle=Ramp(0.05, 0.30, 0.04, 0.33, curve=1.5),
+        mound=Ramp(0.05, 0.30, 0.04, 0.33),  # only the top capped: RandomMix keeps its ramp
         # wide and shallow (walked through) at level 0; as narrow as a step from level 2,
         # where it is deeper than a G1 leg lifts (0.34 m)
         ditch_top=Ramp(1.2, 0.45, 0.4, 1.3, full=0.5)),
@@ -483,7 +486,7 @@ def mounds(d: float, rng: np.random.Generator, grid: Grid) -> Patch:
     n = max(1, int(grid.length // 1.5))
     tops = []
     for k in range(n):
-        top = jitter(rng, lerp(0.05, 0.40, d), 0.04, 0.42)
+        top = gap_geometry(grid.geometry).mound.draw(rng, d)
         width = lerp(1.0, 0.6, d) * rng.uniform(0.9, 1.1)
         yaw = rng.uniform(-0.4, 0.4)
         cx = (k + 0.5) * grid.length / n
