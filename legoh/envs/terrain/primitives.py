@@ -331,22 +331,22 @@ def _stones(d: float, rng: np.random.Generator, grid: Grid, staggered: bool) -> 
 
 
 @register_primitive("stones", "gap", (0.045, 0.6),
-                    "stepping stones in a line over a pit; gap 0.05 -> 0.55 m, "
-                    "stone 0.8 -> 0.5 m")
+                    "stepping stones in a line over a pit; gap 0.05 -> 0.45 m, "
+                    "stone 1.6 -> 0.55 m, pit 0.2 -> 1 m deep (v2)")
 def stones(d: float, rng: np.random.Generator, grid: Grid) -> Patch:
     return _stones(d, rng, grid, staggered=False)
 
 
 @register_primitive("stones_staggered", "gap", (0.045, 0.6),
-                    "stepping stones alternating left/right; gap 0.05 -> 0.55 m, "
-                    "side offset 0.15 -> 0.35 m")
+                    "stepping stones alternating left/right; gap 0.05 -> 0.45 m, "
+                    "stone 1.6 -> 0.55 m, side offset 0.05 -> 0.2 m (v2)")
 def stones_staggered(d: float, rng: np.random.Generator, grid: Grid) -> Patch:
     return _stones(d, rng, grid, staggered=True)
 
 
 @register_primitive("gaps", "gap", (0.08, 0.75),
-                    "uneven platforms split by full-width gaps; gap 0.1 -> 0.7 m, "
-                    "platform height spread 0 -> 0.1 m")
+                    "uneven platforms split by full-width gaps; gap 0.1 -> 0.5 m, "
+                    "pit 0.2 -> 1 m deep, platform height spread 0 -> 0.1 m (v2)")
 def gaps(d: float, rng: np.random.Generator, grid: Grid) -> Patch:
     geo = gap_geometry(grid.geometry)
     gap = geo.gap.draw(rng, d)
@@ -370,7 +370,8 @@ def gaps(d: float, rng: np.random.Generator, grid: Grid) -> Patch:
 
 @register_primitive("ditch", "depth", (0.08, 0.85),
                     "trench with sloped walls and an uneven floor, crossing at an angle; "
-                    "depth 0.1 -> 0.8 m, wall grade 0.5 -> 2.0, yaw 0 -> 0.5 rad")
+                    "depth 0.1 -> 0.8 m, lip to lip 1.2 -> 0.45 m by level 2 (v2), "
+                    "yaw 0 -> 0.5 rad")
 def ditch(d: float, rng: np.random.Generator, grid: Grid) -> Patch:
     depth = jitter(rng, lerp(0.1, 0.8, d), 0.08, 0.85)
     wall = lerp(0.5, 2.0, d)  # rise per metre of wall
@@ -398,7 +399,7 @@ def ditch(d: float, rng: np.random.Generator, grid: Grid) -> Patch:
 
 
 @register_primitive("hurdles", "height", (0.04, 0.42),
-                    "long cuboids lying across the trail; height 0.05 -> 0.40 m, "
+                    "long cuboids lying across the trail; height 0.05 -> 0.30 m (v2), "
                     "length 60% -> 100% of the width, yaw 0 -> 0.3 rad")
 def hurdles(d: float, rng: np.random.Generator, grid: Grid) -> Patch:
     n = max(1, int(grid.length // 2.0))  # one hurdle every 2 m
@@ -479,7 +480,7 @@ def trees(d: float, rng: np.random.Generator, grid: Grid) -> Patch:
 
 @register_primitive("mounds", "height", (0.04, 0.42),
                     "smooth humps across the trail (buried logs, earth mounds); height "
-                    "0.05 -> 0.40 m, width 1.0 -> 0.6 m")
+                    "0.05 -> 0.30 m (v2), width 1.0 -> 0.6 m")
 def mounds(d: float, rng: np.random.Generator, grid: Grid) -> Patch:
     xs, ys = grid.mesh()
     h = np.zeros_like(xs)
