@@ -270,8 +270,9 @@ def compare_runs(runs: list[Path], stem: Path, test: str, test_title: str) -> Pa
         raise SystemExit(f"--compare: no evals.csv in {', '.join(missing)}")
     benches = [read_rows(r / "bench.csv") for r in runs]
     scored = all(rows and "d_sr" in rows[0] for rows in benches)
-    fig, grid = plt.subplots(2 if scored else 1, 4, figsize=(20, 8 if scored else 4),
-                             squeeze=False)
+    by_category = all((r / "train.csv").exists() and (r / "clock.csv").exists() for r in runs)
+    rows_needed = 1 + scored + by_category
+    fig, grid = plt.subplots(rows_needed, 4, figsize=(20, 4 * rows_needed), squeeze=False)
     axes = grid[0]
     lines = ["| run | minutes | frames (M) | walking >= 10 m (%) | m toward the terminus | "
              "falls in the test (%) | mean level | training falls (%) | randomisation |",
@@ -298,6 +299,8 @@ def compare_runs(runs: list[Path], stem: Path, test: str, test_title: str) -> Pa
         ax.axhline(80, color="k", lw=0.5)
     if scored:
         lines += bench_panels(grid[1], runs, benches)
+    if by_category:
+        lines += category_panels(grid[-1], runs)
     fig.tight_layout()
     fig.savefig(stem.with_suffix(".png"), dpi=90)
     plt.close(fig)
@@ -311,6 +314,51 @@ def compare_runs(runs: list[Path], stem: Path, test: str, test_title: str) -> Pa
 
 
 BENCH_CATEGORIES = ("randommix", "ditch", "hurdle", "gap", "forest")
+
+
+def category_panels(axes, runs: list[Path], smooth: int = 15) -> list[str]:
+    """The training row of :func:`compare_runs`, from each run's train.csv against its
+    clock.csv minutes: Gap and Hurdle training level (solid) and falls of their ended
+    episodes (dashed), and the same for Ditch and Forest; a moving mean over ``smooth``
+    iterations. Returns the table's lines (the last iteration's values)."""
+    from legoh.eval.curves import read_columns
+
+    def mean(x: np.ndarray) -> np.ndarray:
+        x = np.where(np.isfinite(x), x, np.nan)
+        kernel = np.ones(min(smooth, len(x)))
+        valid = np.convolve(np.isfinite(x), kernel, "same")
+        return np.convolve(np.nan_to_num(x), kernel, "same") / np.maximum(valid, 1)
+
+    lines = ["", "| run | minutes | " + " | ".join(f"level {c} | fell {c} (%)"
+                                                  for c in BENCH_CATEGORIES) + " |",
+             "|---|---" + "|---|---" * len(BENCH_CATEGORIES) + "|"]
+    pairs = (("gap", "hurdle"), ("ditch", "forest"))
+    for i, run in enumerate(runs):
+        cols = read_columns(run / "train.csv")
+        clock = dict(zip(*[read_columns(run / "clock.csv")[k] for k in ("iteration",
+                                                                        "minutes")],
+                         strict=True))
+        minutes = np.array([clock.get(it, np.nan) for it in cols["iteration"]])
+        for ax, cats in zip(axes, pairs, strict=False):
+            for cat, style in zip(cats, ("-", ":"), strict=True):
+                if f"level/{cat}" in cols:
+                    ax.plot(minutes, mean(cols[f"level/{cat}"]), style, color=f"C{i}",
+                            label=f"{run.name} {cat}")
+        for ax, cats in zip(axes[2:], pairs, strict=False):
+            for cat, style in zip(cats, ("-", ":"), strict=True):
+                if f"fell/{cat}" in cols:
+                    ax.plot(minutes, 100 * mean(cols[f"fell/{cat}"]), style, color=f"C{i}",
+                            label=f"{run.name} {cat}")
+        last = [(np.nanmean(cols.get(f"level/{c}", [np.nan])[-smooth:]),
+                 100 * np.nanmean(cols.get(f"fell/{c}", [np.nan])[-smooth:]))
+                for c in BENCH_CATEGORIES]
+        lines.append(f"| {run.name} | {np.nanmax(minutes):.1f} | " + " | ".join(
+            f"{lv:.2f} | {fl:.0f}" for lv, fl in last) + " |")
+    label_panels(axes, [("training minutes", "training level: gap (solid), hurdle (dotted)"),
+                        ("training minutes", "training level: ditch (solid), forest (dotted)"),
+                        ("training minutes", "training falls (%): gap, hurdle"),
+                        ("training minutes", "training falls (%): ditch, forest")])
+    return lines
 
 
 def bench_panels(axes, runs: list[Path], benches: list[list[dict]]) -> list[str]:

@@ -35,7 +35,9 @@ import numpy as np  # noqa: E402
 
 from legoh import keys  # noqa: E402
 
-PIT_DROP = 0.5  # m below the stood-on waypoint: a pit (pits are 1 m deep, tops vary 0.1 m)
+# m below the stood-on waypoint: a pit (trail.geometry v2: pits 0.18-1.1 m deep by level,
+# stone tops wobble up to 0.08 m; v1: 1 m deep)
+PIT_DROP = 0.15
 PATH_STEP = 0.025  # m between samples of the path ahead (half a height-field cell)
 
 

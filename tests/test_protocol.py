@@ -91,3 +91,16 @@ def test_the_shipping_readme_names_each_cards_protocol(tmp_path: Path,
     assert "protocol **v2** (docs" in text
     assert "protocol **v1**: not comparable with v2 figures; re-score with" in text
     assert "--robot h1 --stage oracle --rescore" in text
+
+
+def test_the_protocol_names_a_trail_geometry_other_than_its_own() -> None:
+    """Protocol v2's scenes are the v2 trails; a benchmark on the old geometry says so, and
+    its figures are not pooled with v2's."""
+    from legoh.eval.protocol import ProtocolMismatch, protocol_of, same_protocol
+    from tests.conftest import compose_config
+
+    assert protocol_of(compose_config()) == "v2"
+    old = protocol_of(compose_config("trail.geometry=v1"))
+    assert old == "v2+geometry-v1"
+    with pytest.raises(ProtocolMismatch, match="geometry-v1"):
+        same_protocol({"new": "v2", "old trails": old})

@@ -53,7 +53,7 @@ def test_clock_weight_is_zero_at_features_and_one_far_from_them() -> None:
 def test_a_foot_over_a_gap_reads_its_lift_above_the_rim(reference: str) -> None:
     """The env's height grid over a Gap pit: the rim (support) or the pit floor (ground,
     the shipped oracles' recipe)."""
-    cfg = compose_config("trail=gap", "trail.levels=1", "trail.variants=1",
+    cfg = compose_config("trail=gap", "trail.levels=5", "trail.variants=1",  # pits 0.2-1 m
                          f"env.height_reference={reference}")
     env = make_env(cfg, num_envs=1)
     tm, h = env.terrain, env.terrain.heights

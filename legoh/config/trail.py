@@ -1,6 +1,17 @@
 """Trail config schema (``conf/trail/*.yaml``); see docs/terrain.md for every choice."""
 
 from dataclasses import dataclass, field
+from enum import Enum
+
+
+class TrailGeometry(Enum):
+    """How the gap-like primitives and hurdles ramp with the level (docs/terrain.md, "Trails
+    that teach"). ``v1``: the first geometry, a 0.8 m causeway over a 1 m pit at level 0 (what
+    the shipped policies trained on); ``v2``: wide and shallow at level 0, narrow and deep at
+    the top, every level within a G1's and an H1's leg."""
+
+    v1 = "v1"
+    v2 = "v2"
 
 
 @dataclass
@@ -27,3 +38,4 @@ class TrailConfig:
     hill_categories: list[str] = field(
         default_factory=lambda: ["randommix", "ditch", "hurdle", "gap", "forest"])
     hill_rise: float = 4.0  # m, hillside height at the top level (40% of it at level 0)
+    geometry: TrailGeometry = TrailGeometry.v2  # gap, ditch and hurdle ramps: v1 | v2

@@ -48,7 +48,7 @@ from legoh.eval.metrics import (
     write_runs_csv,
 )
 from legoh.eval.plots import outcome_labels, plot_trajectories
-from legoh.eval.protocol import LEGACY, PROTOCOL, same_protocol
+from legoh.eval.protocol import LEGACY, protocol_of, same_protocol
 from legoh.policies.student import make_student_env, state_shapes
 from legoh.threads import torch_threads
 
@@ -261,6 +261,7 @@ def evaluate(cfg: DictConfig, actor, out_dir: str | Path, label: str = "policy",
         bar.close()
         if was_training:
             actor.train()
+    protocol = protocol_of(cfg)
     names = list(runs[0])
     is_level = [k.startswith("level ") for k in names]
     summary = {k: summarize([run[k] for run in runs]) for k in names}
@@ -268,15 +269,15 @@ def evaluate(cfg: DictConfig, actor, out_dir: str | Path, label: str = "policy",
     levels = {k: summary[k] for k, lv in zip(names, is_level, strict=True) if lv}
     title = (f"{label} on {cfg.trail.name} ({cfg.robot.name}): {ev.robots} robots x "
              f"{ev.seconds:g} s, levels {list(ev.levels)} x {ev.variants} variants, "
-             f"{ev.runs} run(s), mean ± std over runs, benchmark protocol {PROTOCOL}")
+             f"{ev.runs} run(s), mean ± std over runs, benchmark protocol {protocol}")
     paths["markdown"] = out_dir / "benchmark.md"
     paths["markdown"].write_text(to_markdown(rows, "Category", title) + "\n"
                                  + to_markdown(levels, "Level", "Per level"), encoding="utf-8")
     paths["csv"] = write_csv(out_dir / "benchmark.csv", {**rows, **levels}, label="category",
-                             protocol=PROTOCOL)
-    paths["runs_csv"] = write_runs_csv(out_dir / "benchmark_runs.csv", runs, protocol=PROTOCOL)
+                             protocol=protocol)
+    paths["runs_csv"] = write_runs_csv(out_dir / "benchmark_runs.csv", runs, protocol=protocol)
     return {"label": label, "rows": rows, "levels": levels, "runs": runs, "paths": paths,
-            "wall_s": time.perf_counter() - t0, "steps": steps, "protocol": PROTOCOL}
+            "wall_s": time.perf_counter() - t0, "steps": steps, "protocol": protocol}
 
 
 def compare(results: Mapping[str, dict], row: str = OVERALL

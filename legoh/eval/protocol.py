@@ -9,7 +9,9 @@ v2").
 - **v2**: a robot starts on its waypoint (no xy jitter; the heading jitter only where every
   sole stays on footing), its height read from the support under its soles, with its
   category's obstacle on the path ahead (``legoh.envs.mdp.spawns``); 5 variants a level
-  (appendix Table 8's 25 scenes).
+  (appendix Table 8's 25 scenes); the trails of ``trail.geometry=v2`` (docs/terrain.md,
+  "Trails that teach": Gap and Ditch widths and pit depths, hurdle heights ramp with level).
+  Scored on another geometry, a file names it: ``v2+geometry-v1``.
 """
 
 from __future__ import annotations
@@ -21,7 +23,16 @@ from pathlib import Path
 
 PROTOCOL = "v2"  # the protocol this code scores under
 LEGACY = "v1"  # what a file or card that names no protocol was scored under
+GEOMETRY = "v2"  # the trail geometry (trail.geometry) of the protocol's scenes
 COLUMN = "protocol"  # the column of benchmark.csv and benchmark_runs.csv that names it
+
+
+def protocol_of(cfg) -> str:
+    """The protocol a benchmark under run config ``cfg`` scores on: :data:`PROTOCOL`, with
+    the trail geometry appended when it is not the protocol's own (v2)."""
+    geometry = getattr(cfg.trail, "geometry", GEOMETRY)
+    geometry = str(getattr(geometry, "value", geometry))  # an enum in a composed config
+    return PROTOCOL if geometry == GEOMETRY else f"{PROTOCOL}+geometry-{geometry}"
 
 
 class ProtocolMismatch(ValueError):

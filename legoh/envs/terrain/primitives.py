@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.ndimage import map_coordinates
 
-PIT_DEPTH = 1.0  # m, depth of the void under stepping stones and gaps (a miss is a fall)
+PIT_DEPTH = 1.0  # m, depth of the void under stepping stones and gaps at the top level
 LANDING = 0.6  # m of level ground a gap-like primitive keeps at its entry and exit
 TAPER = 0.5  # m over which noise fades in at segment ends (joins stay step-free)
 ROBOT_HALF_WIDTH = 0.35  # m, half the shoulder width of an H1; corridors are cut this wide
@@ -29,6 +29,7 @@ class Grid:
     width: float  # m across the trail
     res: float  # m per cell
     clearance: float = 0.4  # m a waypoint keeps from any obstacle
+    geometry: str = "v2"  # which :data:`GEOMETRIES` table the gap-like primitives read
 
     @property
     def nx(self) -> int:
@@ -150,6 +151,77 @@ def _centre_waypoints(grid: Grid, xs: np.ndarray) -> np.ndarray:
     return np.stack([xs, np.full_like(xs, grid.width / 2)], axis=-1)
 
 
+# ---- how the gap-like primitives and hurdles ramp with difficulty (trail.geometry) --------
+
+
+@dataclass(frozen=True)
+class Ramp:
+    """A property that changes with difficulty d: ``at0`` at d = 0, ``at1`` from d = ``full``
+    on, along ``(d / full) ** curve`` in between. A variant draws it times a random factor in
+    [0.9, 1.1], clipped to [``lo``, ``hi``]."""
+
+    at0: float
+    at1: float
+    lo: float = -np.inf
+    hi: float = np.inf
+    curve: float = 1.0  # > 1: small steps at the low levels, larger ones at the top
+    full: float = 1.0  # difficulty from which the property stays at ``at1``
+
+    def at(self, d: float) -> float:
+        """The nominal value at difficulty ``d`` (no random factor)."""
+        return lerp(self.at0, self.at1, min(1.0, d / self.full) ** self.curve)
+
+    def draw(self, rng: np.random.Generator, d: float) -> float:
+        """One variant's value at difficulty ``d``."""
+        return jitter(rng, self.at(d), self.lo, self.hi)
+
+
+@dataclass(frozen=True)
+class GapGeometry:
+    """Ramps of the gap-like primitives (stones, gaps, ditch) and hurdles, all in m."""
+
+    pit_depth: Ramp  # void under stones and gaps; one depth per level (not drawn)
+    stone_size: Ramp  # side of a square stepping stone
+    stone_gap: Ramp  # pit between two stones, edge to edge
+    stagger: Ramp  # sideways shift of staggered stones, alternating (not drawn)
+    gap: Ramp  # full-width gap between two platforms of ``gaps``
+    hurdle: Ramp  # hurdle height
+    mound: Ramp  # mound height (RandomMix's hurdle in the ground: stepped over as well)
+    ditch_top: Ramp | None  # ditch width lip to lip; None: whatever its walls make (v1)
+
+
+DITCH_FLOOR = 0.3  # m, narrowest ditch floor in v2: a sole (H1 0.20 m) lands on it
+
+
+# v1: the geometry the shipped policies trained on (a 0.8 m causeway over a 1 m pit at
+# level 0). v2 (docs/terrain.md, "Trails that teach"): wide and shallow at level 0 (Extreme
+# Parkour's 1.2-2.4 m valid width and 0.2-1 m pit depth), narrow and deep at the top, every
+# level within the reach and lift of the smaller leg (G1; ``feasibility.LEGS``).
+GEOMETRIES: dict[str, GapGeometry] = {
+    "v1": GapGeometry(
+        pit_depth=Ramp(PIT_DEPTH, PIT_DEPTH), stone_size=Ramp(0.8, 0.5, 0.45, 0.85),
+        stone_gap=Ramp(0.05, 0.55, 0.045, 0.6), stagger=Ramp(0.15, 0.35),
+        gap=Ramp(0.1, 0.7, 0.08, 0.75), hurdle=Ramp(0.05, 0.40, 0.04, 0.42),
+        mound=Ramp(0.05, 0.40, 0.04, 0.42), ditch_top=None),
+    "v2": GapGeometry(
+        pit_depth=Ramp(0.2, PIT_DEPTH), stone_size=Ramp(1.6, 0.55, 0.5, 1.7),
+        stone_gap=Ramp(0.05, 0.45, 0.045, 0.5), stagger=Ramp(0.05, 0.2),
+        gap=Ramp(0.1, 0.5, 0.08, 0.55), hurdle=Ramp(0.05, 0.30, 0.04, 0.33, curve=1.5),
+        mound=Ramp(0.05, 0.30, 0.04, 0.33),  # only the top capped: RandomMix keeps its ramp
+        # wide and shallow (walked through) at level 0; as narrow as a step from level 2,
+        # where it is deeper than a G1 leg lifts (0.34 m)
+        ditch_top=Ramp(1.2, 0.45, 0.4, 1.3, full=0.5)),
+}
+
+
+def gap_geometry(name: str) -> GapGeometry:
+    """The ramp table ``name``; raises ValueError naming the key and the valid values."""
+    if name not in GEOMETRIES:
+        raise ValueError(f"trail.geometry={name!r} is not a terrain geometry; valid: "
+                         f"{sorted(GEOMETRIES)}")
+    return GEOMETRIES[name]
+
+
 # ---- the primitives -----------------------------------------------------------------------
 
 
@@ -236,12 +308,14 @@ def rocks(d: float, rng: np.random.Generator, grid: Grid) -> Patch:
 
 
 def _stones(d: float, rng: np.random.Generator, grid: Grid, staggered: bool) -> Patch:
-    size = jitter(rng, lerp(0.8, 0.5, d), 0.45, 0.85)
-    gap = jitter(rng, lerp(0.05, 0.55, d), 0.045, 0.6)
+    geo = gap_geometry(grid.geometry)
+    size = geo.stone_size.draw(rng, d)
+    gap = geo.stone_gap.draw(rng, d)
+    depth = geo.pit_depth.at(d)
     wobble = lerp(0.0, 0.08, d)  # m, stone tops are not level with each other
-    offset = lerp(0.15, 0.35, d) if staggered else 0.0  # m, sideways shift, alternating
+    offset = geo.stagger.at(d) if staggered else 0.0  # m, sideways shift, alternating
     xs, ys = grid.mesh()
-    h = np.full_like(xs, -PIT_DEPTH)
+    h = np.full_like(xs, -depth)
     h[xs < LANDING] = 0.0
     x0, centres = LANDING + gap, []
     while x0 + size + gap + LANDING <= grid.length:
@@ -252,32 +326,34 @@ def _stones(d: float, rng: np.random.Generator, grid: Grid, staggered: bool) -> 
         x0 += size + gap
     h[xs >= x0] = 0.0  # exit landing starts one gap after the last stone
     wp = np.array(centres).reshape(-1, 2)
-    return Patch(h, waypoints=wp, keepout=h < -PIT_DEPTH / 2,
-                 params={"gap": gap, "stone_size": size, "offset": offset})
+    return Patch(h, waypoints=wp, keepout=h < -depth / 2,
+                 params={"gap": gap, "stone_size": size, "offset": offset, "depth": depth})
 
 
 @register_primitive("stones", "gap", (0.045, 0.6),
-                    "stepping stones in a line over a pit; gap 0.05 -> 0.55 m, "
-                    "stone 0.8 -> 0.5 m")
+                    "stepping stones in a line over a pit; gap 0.05 -> 0.45 m, "
+                    "stone 1.6 -> 0.55 m, pit 0.2 -> 1 m deep (v2)")
 def stones(d: float, rng: np.random.Generator, grid: Grid) -> Patch:
     return _stones(d, rng, grid, staggered=False)
 
 
 @register_primitive("stones_staggered", "gap", (0.045, 0.6),
-                    "stepping stones alternating left/right; gap 0.05 -> 0.55 m, "
-                    "side offset 0.15 -> 0.35 m")
+                    "stepping stones alternating left/right; gap 0.05 -> 0.45 m, "
+                    "stone 1.6 -> 0.55 m, side offset 0.05 -> 0.2 m (v2)")
 def stones_staggered(d: float, rng: np.random.Generator, grid: Grid) -> Patch:
     return _stones(d, rng, grid, staggered=True)
 
 
 @register_primitive("gaps", "gap", (0.08, 0.75),
-                    "uneven platforms split by full-width gaps; gap 0.1 -> 0.7 m, "
-                    "platform height spread 0 -> 0.1 m")
+                    "uneven platforms split by full-width gaps; gap 0.1 -> 0.5 m, "
+                    "pit 0.2 -> 1 m deep, platform height spread 0 -> 0.1 m (v2)")
 def gaps(d: float, rng: np.random.Generator, grid: Grid) -> Patch:
-    gap = jitter(rng, lerp(0.1, 0.7, d), 0.08, 0.75)
+    geo = gap_geometry(grid.geometry)
+    gap = geo.gap.draw(rng, d)
+    depth = geo.pit_depth.at(d)
     spread = lerp(0.0, 0.1, d)
     xs = grid.x
-    h = np.full((grid.nx, grid.ny), -PIT_DEPTH)
+    h = np.full((grid.nx, grid.ny), -depth)
     h[xs < LANDING] = 0.0
     x0, centres = LANDING + gap, []
     while True:
@@ -289,18 +365,23 @@ def gaps(d: float, rng: np.random.Generator, grid: Grid) -> Patch:
         x0 += plat + gap
     h[xs >= x0] = 0.0
     return Patch(h, waypoints=_centre_waypoints(grid, np.array(centres)),
-                 keepout=h < -PIT_DEPTH / 2, params={"gap": gap})
+                 keepout=h < -depth / 2, params={"gap": gap, "depth": depth})
 
 
 @register_primitive("ditch", "depth", (0.08, 0.85),
                     "trench with sloped walls and an uneven floor, crossing at an angle; "
-                    "depth 0.1 -> 0.8 m, wall grade 0.5 -> 2.0, yaw 0 -> 0.5 rad")
+                    "depth 0.1 -> 0.8 m, lip to lip 1.2 -> 0.45 m by level 2 (v2), "
+                    "yaw 0 -> 0.5 rad")
 def ditch(d: float, rng: np.random.Generator, grid: Grid) -> Patch:
     depth = jitter(rng, lerp(0.1, 0.8, d), 0.08, 0.85)
     wall = lerp(0.5, 2.0, d)  # rise per metre of wall
     floor = rng.uniform(0.4, 0.4 + lerp(0.2, 0.6, d))  # m, flat-ish bottom width
-    yaw = rng.uniform(-1, 1) * lerp(0.0, 0.5, d)
     top_half = floor / 2 + depth / wall
+    top = gap_geometry(grid.geometry).ditch_top
+    if top is not None:  # v2: lip to lip as the ramp says, the walls as steep as that needs
+        top_half = top.draw(rng, d) / 2
+        wall = max(wall, depth / (top_half - DITCH_FLOOR / 2))
+    yaw = rng.uniform(-1, 1) * lerp(0.0, 0.5, d)
     normal = np.array([np.cos(yaw), np.sin(yaw)])
     cx = grid.length / 2
     cy = grid.width / 2 + rng.uniform(-1, 1) * lerp(0.0, 1.5, d)  # trail swerves: quick turns
@@ -313,17 +394,18 @@ def ditch(d: float, rng: np.random.Generator, grid: Grid) -> Patch:
     wp = np.array([[cx, cy]]) + np.array([[-step_off], [step_off]]) * normal
     inside = np.abs(s) < top_half  # the expert crosses lip to lip: no waypoint in the ditch
     return Patch(h, waypoints=wp, keepout=inside,
-                 params={"depth": depth, "wall_grade": wall, "yaw": yaw})
+                 params={"depth": depth, "wall_grade": wall, "yaw": yaw,
+                         "top_width": 2 * top_half})
 
 
 @register_primitive("hurdles", "height", (0.04, 0.42),
-                    "long cuboids lying across the trail; height 0.05 -> 0.40 m, "
+                    "long cuboids lying across the trail; height 0.05 -> 0.30 m (v2), "
                     "length 60% -> 100% of the width, yaw 0 -> 0.3 rad")
 def hurdles(d: float, rng: np.random.Generator, grid: Grid) -> Patch:
     n = max(1, int(grid.length // 2.0))  # one hurdle every 2 m
     boxes, wps = [], []
     for k in range(n):
-        height = jitter(rng, lerp(0.05, 0.40, d), 0.04, 0.42)
+        height = gap_geometry(grid.geometry).hurdle.draw(rng, d)
         thick = rng.uniform(0.1, 0.2)
         span = grid.width * rng.uniform(lerp(0.6, 1.0, d), 1.0)
         yaw = rng.uniform(-1, 1) * lerp(0.0, 0.3, d)
@@ -398,14 +480,14 @@ def trees(d: float, rng: np.random.Generator, grid: Grid) -> Patch:
 
 @register_primitive("mounds", "height", (0.04, 0.42),
                     "smooth humps across the trail (buried logs, earth mounds); height "
-                    "0.05 -> 0.40 m, width 1.0 -> 0.6 m")
+                    "0.05 -> 0.30 m (v2), width 1.0 -> 0.6 m")
 def mounds(d: float, rng: np.random.Generator, grid: Grid) -> Patch:
     xs, ys = grid.mesh()
     h = np.zeros_like(xs)
     n = max(1, int(grid.length // 1.5))
     tops = []
     for k in range(n):
-        top = jitter(rng, lerp(0.05, 0.40, d), 0.04, 0.42)
+        top = gap_geometry(grid.geometry).mound.draw(rng, d)
         width = lerp(1.0, 0.6, d) * rng.uniform(0.9, 1.1)
         yaw = rng.uniform(-0.4, 0.4)
         cx = (k + 0.5) * grid.length / n

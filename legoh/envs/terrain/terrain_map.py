@@ -15,7 +15,7 @@ from scipy.ndimage import distance_transform_edt, map_coordinates
 
 from legoh.envs.terrain.goals import expert_goals, middle_index
 from legoh.envs.terrain.obstacles import footing_mask, obstacle_ahead, obstacle_mask
-from legoh.envs.terrain.trails import TileLayout, check_category, compose_tile
+from legoh.envs.terrain.trails import TileLayout, check_category, compose_tile, geometry_name
 
 SKIRT_RAMP = 0.75  # share of the half-border the skirt ramps over; the rest stays flat at 0
 BOX_SINK = 0.05  # m boxes reach below the ground at their centre (no floating on slopes)
@@ -146,6 +146,7 @@ def build_terrain_map(cfg, seed: int) -> TerrainMap:
         raise ValueError("trail config lists no categories")
     for c in categories:
         check_category(c)
+    geometry_name(cfg)  # a bad trail.geometry fails here, before any tile is built
     levels, variants, res = int(cfg.levels), int(cfg.variants), float(cfg.resolution)
     if levels < 1 or variants < 1:
         raise ValueError(f"levels and variants must be >= 1, got {levels}, {variants}")

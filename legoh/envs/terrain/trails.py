@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from legoh.envs.terrain.primitives import Grid, Patch, lerp, make_patch
+from legoh.envs.terrain.primitives import Grid, Patch, gap_geometry, lerp, make_patch
 
 
 @dataclass(frozen=True)
@@ -67,6 +67,14 @@ def check_category(name: str) -> None:
         raise ValueError(f"unknown trail category {name!r}; valid: {list(ALL_CATEGORIES)}")
 
 
+def geometry_name(cfg) -> str:
+    """``cfg.geometry`` as a plain string ("v1" | "v2"; an enum member gives its value),
+    checked against the ramp tables (ValueError naming the valid ones)."""
+    name = str(getattr(cfg.geometry, "value", cfg.geometry))
+    gap_geometry(name)
+    return name
+
+
 def split_segments(total: int, lo: int, hi: int, rng: np.random.Generator) -> list[int]:
     """Cut ``total`` cells into pieces of ``lo``..``hi`` cells (the last may run longer)."""
     pieces = []
@@ -114,7 +122,7 @@ def assemble(plan: list[tuple[str, int]], difficulty: float, rng: np.random.Gene
     anchors = [np.array([[cfg.start_pad / 2, width / 2]])]
     i0, elevation, names = pad, 0.0, []
     for name, cells in plan:
-        grid = Grid(cells * res, width, res, cfg.clearance)
+        grid = Grid(cells * res, width, res, cfg.clearance, geometry_name(cfg))
         patch = make_patch(name, difficulty, rng, grid)
         up, down = abs(elevation + patch.exit_height), abs(elevation - patch.exit_height)
         if up > cfg.max_elevation and down < up:
