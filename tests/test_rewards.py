@@ -108,6 +108,10 @@ CASES: dict[str, tuple[dict, list[float], str]] = {
         [0.0, 1.0], "fires when horizontal force > 4x vertical (3 < 4, 5 > 4)"),
     "feet_edge": ({"feet_on_edge": np.ones((N, F), dtype=bool), "level": np.array([0, 1])},
                   [0.0, 2.0], "only above level 0 (env.edge_min_level), counts feet"),
+    "leap_air_time": (
+        {"first_contact": np.array([[True, False], [True, False]]),
+         "air_time": rows([0.8, 0.0], [0.8, 0.0]), "clock_weight": np.array([0.0, 1.0])},
+        [0.3, 0.0], "feet_air_time where the clock yields (weight 0), nothing where it holds"),
     "feet_air_time": (
         {"first_contact": np.array([[True, False], [True, False]]),
          "air_time": rows([0.8, 0.0], [0.2, 0.0])},

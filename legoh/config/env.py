@@ -87,11 +87,12 @@ def leap_weights() -> dict[str, float]:
     at the hike preset's scale (a tenth of Table 6's: its velocity kernel weighs 1 where
     Table 6's goal velocity weighs 10): collision -1 (any non-foot body on the terrain),
     feet_stumble -0.1, feet_edge -0.1 (from level 1, ``env.edge_min_level``); and Table 6's
-    feet_air_time +1 (H1's column), which pays a long step at touch-down. The gait clock's
-    terms stay but yield near edges, pits and obstacles (``env.gait.yield_near``), and
-    heights are the support's (``env.height_reference``). Why each: docs/oracle.md."""
+    feet_air_time +1 (H1's column), which pays a long step at touch-down, only where the
+    gait clock yields (``leap_air_time``): near edges, pits and obstacles
+    (``env.gait.yield_near``). Heights are the support's (``env.height_reference``). Why
+    each: docs/oracle.md."""
     return {**hike_weights(), "collision": -1.0, "feet_stumble": -0.1, "feet_edge": -0.1,
-            "feet_air_time": 1.0}
+            "leap_air_time": 1.0}
 
 
 # name -> (weights, clip the step's total at 0)
@@ -324,7 +325,7 @@ class EnvConfig:
     # weight per term over the preset's; None keeps the preset's (a term of your own:
     # +env.rewards.my_term=1.0 after registering it with legoh.envs.mdp.rewards.reward_term)
     rewards: dict[str, float | None] = field(default_factory=lambda: dict.fromkeys(
-        sorted(set(table6_weights()) | set(walk_weights()))))
+        sorted(set(table6_weights()) | set(walk_weights()) | set(leap_weights()))))
     # None: the preset's. True clips the step's total at 0 (legged_gym's only_positive_rewards)
     only_positive_rewards: bool | None = None
     tracking_sigma: float = 0.25  # m^2/s^2, the velocity kernels' exp(-err^2 / sigma)

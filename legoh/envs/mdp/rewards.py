@@ -139,6 +139,15 @@ def feet_air_time(s: StepState, target: float) -> torch.Tensor:
 
 
 @reward_term
+def leap_air_time(s: StepState, target: float) -> torch.Tensor:
+    """feet_air_time where the gait clock yields (times 1 - clock weight): long steps pay
+    at touch-down near edges, pits and obstacles. Ungated, Table 6's 0.5 s target charged
+    every step of the clock's gait (0.36 s of swing) and its walkers fell more (docs/oracle.md,
+    "Recipe v2")."""
+    return ((s.air_time - target) * s.first_contact).sum(1) * (1.0 - s.clock_weight)
+
+
+@reward_term
 def base_height(s: StepState, target: float) -> torch.Tensor:
     """(h_base - h_target)^2, height above the ground under the base."""
     return (s.base_height - target) ** 2
@@ -277,6 +286,7 @@ def term_params(cfg, target_height: float, reach_radius: float) -> dict[str, dic
         "tracking_waypoint_vel": {"sigma": cfg.tracking_sigma},
         "tracking_ang_vel": {"sigma": cfg.tracking_sigma},
         "feet_air_time": {"target": cfg.air_time_target},
+        "leap_air_time": {"target": cfg.air_time_target},
         "feet_swing_height": {"height": cfg.gait.swing_height},
         "feet_phase": {"sigma": cfg.gait.phase_sigma},
         "feet_edge": {"min_level": cfg.edge_min_level},
