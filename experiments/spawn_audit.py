@@ -30,10 +30,10 @@ from pathlib import Path
 os.environ.setdefault("MUJOCO_GL", "egl")
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
 from legoh import keys  # noqa: E402
+from legoh.envs.scene import standing_pose  # noqa: E402
 
 # m below the stood-on waypoint: a pit (trail.geometry v2: pits 0.18-1.1 m deep by level,
 # stone tops wobble up to 0.08 m; v1: 1 m deep)
@@ -44,12 +44,7 @@ PATH_STEP = 0.025  # m between samples of the path ahead (half a height-field ce
 def sole_grid(scene, n: int = 3) -> np.ndarray:
     """(F * n * n, 2) base-frame xy points covering each foot's collider footprint in the
     default pose (yaw 0), from MuJoCo's own kinematics."""
-    model, data = scene.model, mujoco.MjData(scene.model)
-    data.qpos[:] = model.qpos0
-    data.qpos[0:3] = [0.0, 0.0, scene.stand_height]
-    data.qpos[3:7] = [1.0, 0.0, 0.0, 0.0]
-    data.qpos[scene.qpos_adr] = scene.robot.default_pose
-    mujoco.mj_kinematics(model, data)
+    model, data = scene.model, standing_pose(scene)
     points = []
     for body in scene.robot.feet_bodies:
         bid = model.body(body).id

@@ -200,13 +200,20 @@ def build_scene(robot_cfg: RobotConfig, terrain: TerrainMap, dt: float,
                  dof_adr=dof_adr, scan_heights=scan_height_grid(terrain))
 
 
-def feet_rest_height(scene: Scene) -> np.ndarray:
-    """(F,) height of each foot body's origin above flat ground in the default pose: the
-    zero of the swing-height terms' foot lift."""
+def standing_pose(scene: Scene) -> mujoco.MjData:
+    """An MjData of the robot standing in its default pose at the origin on flat ground
+    (yaw 0), its kinematics computed: where the feet and their colliders are at rest."""
     model, d = scene.model, mujoco.MjData(scene.model)
     d.qpos[:] = model.qpos0
     d.qpos[0:3] = [0.0, 0.0, scene.stand_height]
     d.qpos[3:7] = [1.0, 0.0, 0.0, 0.0]
     d.qpos[scene.qpos_adr] = scene.robot.default_pose
     mujoco.mj_kinematics(model, d)
-    return d.xpos[[model.body(b).id for b in scene.robot.feet_bodies], 2].copy()
+    return d
+
+
+def feet_rest_height(scene: Scene) -> np.ndarray:
+    """(F,) height of each foot body's origin above flat ground in the default pose: the
+    zero of the swing-height terms' foot lift."""
+    d = standing_pose(scene)
+    return d.xpos[[scene.model.body(b).id for b in scene.robot.feet_bodies], 2].copy()

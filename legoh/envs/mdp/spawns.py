@@ -22,11 +22,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import mujoco
 import numpy as np
 import torch
 
 from legoh.envs.mdp.state import Grid
+from legoh.envs.scene import standing_pose
 
 SPAWN_YAW_NOISE = 0.3  # rad, uniform either side of the heading
 SPAWN_LIFT = 0.02  # m above the standing height: no initial ground penetration
@@ -36,12 +36,7 @@ SOLE_GRID = 3  # sole points per foot: a SOLE_GRID x SOLE_GRID grid over its foo
 def sole_points(scene) -> np.ndarray:
     """(F * SOLE_GRID**2, 2) base-frame xy (m) covering each foot's collider footprint in the
     default pose, yaw 0 (from MuJoCo's kinematics and the geoms' bounding boxes)."""
-    model, data = scene.model, mujoco.MjData(scene.model)
-    data.qpos[:] = model.qpos0
-    data.qpos[0:3] = [0.0, 0.0, scene.stand_height]
-    data.qpos[3:7] = [1.0, 0.0, 0.0, 0.0]
-    data.qpos[scene.qpos_adr] = scene.robot.default_pose
-    mujoco.mj_kinematics(model, data)
+    model, data = scene.model, standing_pose(scene)
     out = []
     for body in scene.robot.feet_bodies:
         geoms = np.flatnonzero((model.geom_bodyid == model.body(body).id)
