@@ -3,6 +3,7 @@ rollout, serve it (``legoh.viewer.server``), print the URL, serve until Ctrl-C o
 
 from __future__ import annotations
 
+import logging
 import signal
 import threading
 from collections.abc import Sequence
@@ -64,6 +65,8 @@ def main(cfg: DictConfig, overrides: Sequence[str] = ()) -> None:
 
     checkpoint = cfg.checkpoint or None
     warn_untrained(checkpoint)
+    # Hydra's console handler would print every page's connection and disconnection
+    logging.getLogger("websockets").setLevel(logging.WARNING)
     print("[legoh] recording the rollout (the page replays it) ...", flush=True)
     viewer = make_viewer(cfg, checkpoint, overrides)
     stop = threading.Event()
