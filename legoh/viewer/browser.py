@@ -6,6 +6,7 @@ Debian's ``chromium``, which ``.ci/run`` installs, never a download of Playwrigh
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import time
 from collections.abc import Iterator
@@ -50,7 +51,7 @@ def open_page(url: str, chromium: str | None = None, timeout_s: float = 120.0,
             page = browser.new_page(viewport=viewport or VIEWPORT)
             page.set_default_timeout(timeout_s * 1000)
             page.goto(url)
-            page.get_by_text("robot 0 ·").first.wait_for()
+            page.get_by_text(re.compile(r"robot \d+ ·")).first.wait_for()
             yield page
         finally:
             browser.close()

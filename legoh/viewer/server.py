@@ -150,6 +150,7 @@ class WebViewer:
         self.follow.on_update(lambda _: self.show(int(self.slider.value), jump=True))
         self.trail.on_update(lambda _: self._offer_levels(self._levels_of(self.trail.value)))
         self.rerun.on_click(lambda _: self._rerun())
+        self.server.on_client_connect(self._on_connect)
 
     def _levels_of(self, trail: str) -> int:
         """How many levels ``trail`` has (the running config's when it is that trail)."""
@@ -225,8 +226,6 @@ class WebViewer:
             self.trail.value = cfg.trail.name
             self.slider.max = replay.rollout.steps
             self.slider.value = 0
-            self.server.initial_camera.look_at, self.server.initial_camera.position = \
-                self._default_view(replay, 0)
             self.show(0, jump=True)
         outcomes = ", ".join(f"{i}: {o}" for i, o in enumerate(replay.rollout.outcome))
         self.status.content = (f"{cfg.robot.name.upper()} on {cfg.trail.name} level "
@@ -289,10 +288,11 @@ class WebViewer:
                 f"{root}/terminus/flag", dimensions=(0.024, 0.6, 0.4),
                 position=end + [0.0, 0.3, POLE_HEIGHT - 0.2], color=rgb255(FLAG)))
 
-    def _default_view(self, replay: Replay, robot: int) -> tuple[np.ndarray, np.ndarray]:
-        """(look-at, camera position) of the video's view of ``robot`` at the reset: from
+    def _default_view(self, replay: Replay, robot: int, step: int = 0
+                      ) -> tuple[np.ndarray, np.ndarray]:
+        """(look-at, camera position) of the video's view of ``robot`` at ``step``: from
         behind and beside it along the trail (+x), looking down ``CAMERA_ELEVATION``."""
-        base = replay.pos[0, robot, 0]
+        base = replay.pos[step, robot, 0]
         distance = CAMERA_DISTANCE * replay.rollout.base_height
         az, el = np.radians(CAMERA_SIDE), np.radians(-CAMERA_ELEVATION)
         offset = distance * np.array([-np.cos(el) * np.cos(az), -np.cos(el) * np.sin(az),
@@ -361,20 +361,34 @@ class WebViewer:
                                            label=self.depth_label)
 
     def _follow(self, replay: Replay, step: np.ndarray, who: int | None, jump: bool) -> None:
-        """Move each client's camera with the followed robot, keeping its own angle."""
+        """Move each page's camera with the followed robot, keeping the angle its user
+        gave it; ``jump``: to the default view of it (also what a page opened later and
+        its "Reset View" start from)."""
         if who is None:
             return
-        target = replay.pos[step[who], who, 0]
+        if jump:
+            view = self._default_view(replay, who, int(step[who]))
+            self.server.initial_camera.look_at, self.server.initial_camera.position = view
         for client in self.server.get_clients().values():
-            camera = client.camera
-            if jump:
-                look, position = self._default_view(replay, who)
-                look, position = target, position - look + target
-                with client.atomic():
-                    camera.position = position
-                    camera.look_at = look
-            elif camera.update_timestamp > 0.0:  # the page has reported its camera
-                camera.position = camera.position + (target - camera.look_at)
+            self._move_camera(client, replay.pos[step[who], who, 0], jump)
+
+    def _move_camera(self, client: viser.ClientHandle, target: np.ndarray, jump: bool) -> None:
+        camera = client.camera
+        if camera.update_timestamp == 0.0:  # the page has not reported its camera yet
+            return
+        if jump:
+            with client.atomic():
+                camera.position = self.server.initial_camera.position
+                camera.look_at = self.server.initial_camera.look_at
+        else:
+            camera.position = camera.position + (target - camera.look_at)
+
+    def _on_connect(self, client: viser.ClientHandle) -> None:
+        """A page opened while following a robot starts at that robot (viser calls this
+        once the page has reported its camera)."""
+        with self._lock:
+            if self.replay is not None and self.followed() is not None:
+                self._move_camera(client, self.server.initial_camera.look_at, jump=True)
 
     def close(self) -> None:
         """Stop the player and the server."""
