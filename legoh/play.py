@@ -7,6 +7,10 @@ beside the robot on a dressed copy of the env's scene (the same terrain map and 
 visual meshes, sky and shadows), the expert waypoints and the terminus drawn in, a caption
 on each frame (robot, trail, level, time, distance walked) and, for a policy with depth, its
 depth view beside the picture. Rendering is headless (EGL on Linux).
+
+The rollout is recorded first (:func:`record_rollout`: every robot's pose at every step)
+and filmed after (:func:`film`); ``viewer=web`` (``legoh/viewer``) replays the same record
+in a browser page.
 """
 
 from __future__ import annotations
