@@ -17,74 +17,20 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
-import trimesh
 import viser
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig
 
 from legoh.play import Rollout
-from legoh.video import (
-    CAMERA_DISTANCE,
-    CAMERA_ELEVATION,
-    CAMERA_SIDE,
-    FLAG,
-    NEXT_WAYPOINT,
-    OBSTACLE,
-    PASSED,
-    POLE_HEIGHT,
-    ROBOT,
-    TRUNK,
-    WAYPOINT,
-    WAYPOINT_LIFT,
-    WAYPOINT_RADIUS,
-    caption_line,
-    depth_panel,
-)
-from legoh.viewer.scene import body_meshes, body_poses, robot_model, tile_meshes
+from legoh.video import NEXT_WAYPOINT, PASSED, ROBOT, WAYPOINT, caption_line, depth_panel
+from legoh.viewer.nodes import ROOTS, Replay, add_nodes, prepare, rgb255
 
 FPS = 25.0  # page updates per second while playing (the video's rate)
 SPEEDS = ("0.25", "0.5", "1", "2", "4")  # playback speeds offered, x real time
 FREE = "free camera"  # the follow selector's entry that stops following
 DEPTH_PANEL = (240, 320)  # px, height and width of the depth inset
 FOLLOWED = (0.20, 0.45, 0.85)  # rgb 0-1: the followed robot stands out from the others
-NODES = ("/terrain", "/robots", "/trail")  # the scene's roots, rebuilt for each rollout
-
-
-def rgb255(rgb: tuple[float, float, float]) -> tuple[int, int, int]:
-    """An rgb colour 0-1 as viser's 0-255 ints."""
-    return tuple(int(round(255 * c)) for c in rgb)
-
-
-@dataclass
-class Replay:
-    """One rollout ready to replay: the world poses of every drawn body, every step."""
-
-    cfg: DictConfig
-    rollout: Rollout
-    names: list[str]  # robot bodies drawn (those with a mesh)
-    meshes: list[trimesh.Trimesh]  # each one's mesh, body frame
-    pos: np.ndarray  # (T+1, N, B, 3) world positions, m
-    quat: np.ndarray  # (T+1, N, B, 4) world orientations, wxyz
-    tiles: list[int]  # distinct tiles the robots hike, indices into the terrain map
-    tile_of: np.ndarray  # (N,) each robot's position in ``tiles``
-
-    def step_of(self, frame: int) -> np.ndarray:
-        """(N,) the step each robot shows at ``frame``: frozen where its episode ended."""
-        return np.minimum(frame, self.rollout.end)
-
-
-def prepare(cfg: DictConfig, rollout: Rollout) -> Replay:
-    """Body meshes' poses for every step of ``rollout`` (``mj_kinematics`` of its qpos)."""
-    model = robot_model(OmegaConf.to_object(cfg.robot))
-    meshes = body_meshes(model)
-    pos, quat = body_poses(model, rollout.qpos, list(meshes))
-    index = [next(k for k, t in enumerate(rollout.terrain.tiles) if t is tile)
-             for tile in rollout.tiles]
-    tiles = list(dict.fromkeys(index))
-    return Replay(cfg, rollout, [model.body(b).name for b in meshes], list(meshes.values()),
-                  pos, quat, tiles, np.array([tiles.index(t) for t in index]))
 
 
 class WebViewer:
@@ -113,7 +59,11 @@ class WebViewer:
         self._time = 0.0  # steps since the start, fractional while playing
         self._depth_shown: tuple | None = None
         self._build_gui(cfg, trails)
-        self.load(cfg, int(max(cfg.eval.levels)) if level is None else level)
+        try:
+            self.load(cfg, int(max(cfg.eval.levels)) if level is None else level)
+        except BaseException:  # no rollout to serve: do not leave the server running
+            self.server.stop()
+            raise
         self._stop = threading.Event()
         self._player = threading.Thread(target=self._play_loop, name="legoh-viewer",
                                         daemon=True)
@@ -211,13 +161,10 @@ class WebViewer:
         replay = prepare(cfg, self.run(cfg, level))
         with self._lock:
             self.set_playing(False)
-            for root in NODES:
+            for root in ROOTS:
                 self.server.scene.remove_by_name(root)
-            self.handles = {}
             self.replay = replay
-            self._add_terrain(replay)
-            self._add_robots(replay)
-            self._add_trail(replay)
+            self.handles = add_nodes(self.server.scene, replay)
             self._time, self._depth_shown = 0.0, None
             n = len(replay.rollout.end)
             self.follow.options = (*(f"robot {i}" for i in range(n)), FREE)
@@ -241,63 +188,6 @@ class WebViewer:
             self.status.content = f"**failed**: {err}"
         finally:
             self.rerun.disabled = False
-
-    def _add(self, name: str, handle: viser.SceneNodeHandle) -> None:
-        self.handles[name] = handle
-
-    def _add_terrain(self, replay: Replay) -> None:
-        scene, terrain = self.server.scene, replay.rollout.terrain
-        for k, t in enumerate(replay.tiles):
-            meshes = tile_meshes(terrain, terrain.tiles[t])
-            root = f"/terrain/tile_{k}"
-            self._add(f"{root}/ground", scene.add_mesh_trimesh(f"{root}/ground",
-                                                               meshes.ground))
-            for j, box in enumerate(meshes.boxes):
-                self._add(f"{root}/box_{j}", scene.add_mesh_simple(
-                    f"{root}/box_{j}", box.vertices, box.faces, color=rgb255(OBSTACLE),
-                    flat_shading=True))
-            for j, trunk in enumerate(meshes.trunks):
-                self._add(f"{root}/trunk_{j}", scene.add_mesh_simple(
-                    f"{root}/trunk_{j}", trunk.vertices, trunk.faces, color=rgb255(TRUNK)))
-
-    def _add_robots(self, replay: Replay) -> None:
-        n = replay.pos.shape[1]
-        for b, (body, mesh) in enumerate(zip(replay.names, replay.meshes, strict=True)):
-            name = f"/robots/{body}"
-            self._add(name, self.server.scene.add_batched_meshes_simple(
-                name, mesh.vertices, mesh.faces, batched_wxyzs=replay.quat[0, :, b],
-                batched_positions=replay.pos[0, :, b],
-                batched_colors=np.tile(rgb255(ROBOT), (n, 1)), lod="off"))
-
-    def _add_trail(self, replay: Replay) -> None:
-        scene, terrain = self.server.scene, replay.rollout.terrain
-        for k, t in enumerate(replay.tiles):
-            tile, root = terrain.tiles[t], f"/trail/tile_{k}"
-            points = tile.waypoints[:-1] + [0.0, 0.0, WAYPOINT_LIFT]
-            sphere = _sphere(WAYPOINT_RADIUS)
-            self._add(f"{root}/waypoints", scene.add_batched_meshes_simple(
-                f"{root}/waypoints", sphere.vertices, sphere.faces,
-                batched_wxyzs=np.tile([1.0, 0.0, 0.0, 0.0], (len(points), 1)),
-                batched_positions=points,
-                batched_colors=np.tile(rgb255(WAYPOINT), (len(points), 1)), lod="off"))
-            end = tile.terminus
-            self._add(f"{root}/terminus/pole", scene.add_cylinder(
-                f"{root}/terminus/pole", radius=0.03, height=POLE_HEIGHT,
-                position=end + [0.0, 0.0, POLE_HEIGHT / 2.0], color=(240, 240, 240)))
-            self._add(f"{root}/terminus/flag", scene.add_box(
-                f"{root}/terminus/flag", dimensions=(0.024, 0.6, 0.4),
-                position=end + [0.0, 0.3, POLE_HEIGHT - 0.2], color=rgb255(FLAG)))
-
-    def _default_view(self, replay: Replay, robot: int, step: int = 0
-                      ) -> tuple[np.ndarray, np.ndarray]:
-        """(look-at, camera position) of the video's view of ``robot`` at ``step``: from
-        behind and beside it along the trail (+x), looking down ``CAMERA_ELEVATION``."""
-        base = replay.pos[step, robot, 0]
-        distance = CAMERA_DISTANCE * replay.rollout.base_height
-        az, el = np.radians(CAMERA_SIDE), np.radians(-CAMERA_ELEVATION)
-        offset = distance * np.array([-np.cos(el) * np.cos(az), -np.cos(el) * np.sin(az),
-                                      np.sin(el)])
-        return base, base + offset
 
     def followed(self) -> int | None:
         """The robot the camera follows (None: a free camera)."""
@@ -367,7 +257,7 @@ class WebViewer:
         if who is None:
             return
         if jump:
-            view = self._default_view(replay, who, int(step[who]))
+            view = replay.default_view(who, int(step[who]))
             self.server.initial_camera.look_at, self.server.initial_camera.position = view
         for client in self.server.get_clients().values():
             self._move_camera(client, replay.pos[step[who], who, 0], jump)
@@ -397,5 +287,3 @@ class WebViewer:
         self.server.stop()
 
 
-def _sphere(radius: float) -> trimesh.Trimesh:
-    return trimesh.creation.icosphere(subdivisions=2, radius=radius)
