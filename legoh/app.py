@@ -11,7 +11,7 @@ from legoh.config.algo import Stage
 def run(cfg: DictConfig) -> None:
     """Run ``cfg.mode`` in the Hydra run's output folder (a resumed training run: in its
     checkpoint's folder, :func:`legoh.runs.run_folder`)."""
-    from legoh.config import Mode, validate
+    from legoh.config import Mode, Viewer, validate
     from legoh.runs import run_folder
 
     validate(cfg)
@@ -29,6 +29,10 @@ def run(cfg: DictConfig) -> None:
         cli.main(cfg, out_dir)
     elif mode == Mode.export:
         export(cfg, out_dir)
+    elif mode == Mode.play and Viewer(cfg.viewer) == Viewer.web:
+        from legoh.viewer import cli as viewer
+
+        viewer.main(cfg, hydra.overrides.task)
     elif mode == Mode.play:
         from legoh import play
 

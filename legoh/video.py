@@ -85,7 +85,7 @@ def dress(spec: mujoco.MjSpec, base_body: str) -> None:
     ground, coloured obstacles, the robot's visual meshes shown and its colliders hidden,
     a sun on the robot's base (it tracks its centre of mass, so its shadow box follows)."""
     for mesh in spec.meshes:
-        _coarsen_mesh(spec, mesh, MESH_CELL)
+        coarsen_mesh(spec, mesh, MESH_CELL)
     spec.add_texture(name="sky", type=mujoco.mjtTexture.mjTEXTURE_SKYBOX,
                      builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT, rgb1=SKY_TOP,
                      rgb2=SKY_HORIZON, width=256, height=1536)
@@ -137,7 +137,7 @@ def render_model(robot: RobotConfig, terrain: TerrainMap, dt: float, hfield_chun
     return model
 
 
-def _coarsen_mesh(spec: mujoco.MjSpec, mesh: mujoco.MjsMesh, cell: float) -> None:
+def coarsen_mesh(spec: mujoco.MjSpec, mesh: mujoco.MjsMesh, cell: float) -> None:
     """Replace a file mesh of ``spec`` by its vertex clustering: vertices within one
     ``cell`` (m) merged to their mean, the faces that collapse dropped."""
     if not mesh.file:
@@ -301,10 +301,10 @@ def caption_line(robot: str, trail: str, level: int, seconds: float, walked: flo
 
 
 def depth_panel(depth: np.ndarray, far: float, height: int = HEIGHT,
-                width: int = PANEL_WIDTH) -> np.ndarray:
+                width: int = PANEL_WIDTH, label: str = "robot's depth view") -> np.ndarray:
     """The robot's depth frame beside the main view: (height, width, 3) uint8, the frame
     (h, w) in the env's normalisation (``depth / far - 0.5``) colour-mapped over 0..far m
-    and upscaled by whole pixels, on a dark column with its label."""
+    and upscaled by whole pixels, on a dark column with its ``label``."""
     from matplotlib import colormaps
 
     metres = (np.asarray(depth, dtype=np.float64) + 0.5) * far
@@ -317,7 +317,7 @@ def depth_panel(depth: np.ndarray, far: float, height: int = HEIGHT,
     image = Image.fromarray(panel)
     draw = ImageDraw.Draw(image)
     font = ImageFont.load_default(size=CAPTION_SIZE - 2)
-    draw.text((8, CAPTION_SIZE // 2), "robot's depth view", fill=(235, 235, 235), font=font)
+    draw.text((8, CAPTION_SIZE // 2), label, fill=(235, 235, 235), font=font)
     draw.text((8, top + rgb.shape[0] + 6), f"near 0 m (bright) .. far {far:.1f} m (dark)",
               fill=(200, 200, 200), font=font)
     return np.asarray(image)

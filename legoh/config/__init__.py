@@ -22,8 +22,8 @@ from legoh.config.robot import CameraConfig, RobotConfig
 from legoh.config.trail import TrailConfig
 
 __all__ = ["CameraConfig", "CollectorConfig", "Config", "EnvConfig", "LossWeights",
-           "OracleConfig", "RobotConfig", "SimConfig", "TrailConfig", "UnifiedConfig",
-           "register_configs", "validate"]
+           "OracleConfig", "RobotConfig", "SimConfig", "TrailConfig", "UnifiedConfig", "Viewer",
+           "WebConfig", "register_configs", "validate"]
 
 
 class Mode(Enum):
@@ -34,6 +34,23 @@ class Mode(Enum):
     stand = "stand"
     export = "export"
     play = "play"
+
+
+class Viewer(Enum):
+    """How ``mode=play`` shows the policy (``viewer=...``)."""
+
+    video = "video"  # play.mp4 and a filmstrip of robot 0 in the run folder
+    web = "web"  # an interactive 3-D page served with viser until Ctrl-C (legoh/viewer)
+
+
+@dataclass
+class WebConfig:
+    """Where ``viewer=web`` serves its page (``web.host``, ``web.port``)."""
+
+    # 127.0.0.1: this machine only (reach a remote one through an SSH tunnel, ssh -L
+    # 8080:localhost:8080); 0.0.0.0 serves every network the machine is on
+    host: str = "127.0.0.1"
+    port: int = 8080  # a taken port: the next free one is used; 0: any free port
 
 
 @dataclass
@@ -76,6 +93,8 @@ class Config:
     # pretrained/<robot>_oracle.pt, or from scratch when it ships none; none: from scratch
     init: str | None = "pretrained"
     checkpoint: str | None = None  # eval, play: the policy; none: the untrained one
+    viewer: Viewer = Viewer.video  # play: a video (video) or an interactive page (web)
+    web: WebConfig = field(default_factory=WebConfig)  # viewer=web: where it serves
     video: bool = True  # train: the main job ends with a video of its policy (play.mp4)
     stand_seconds: float = 3.0  # s mode=stand holds the default pose before rendering
     # where stage 2 keeps the oracles it trained, keyed by their config, for reuse
