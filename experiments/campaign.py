@@ -352,7 +352,7 @@ def category_panels(axes, runs: list[Path], smooth: int = 15) -> list[str]:
         last = [(np.nanmean(cols.get(f"level/{c}", [np.nan])[-smooth:]),
                  100 * np.nanmean(cols.get(f"fell/{c}", [np.nan])[-smooth:]))
                 for c in BENCH_CATEGORIES]
-        lines.append(f"| {run.name} | {np.nanmax(minutes):.1f} | " + " | ".join(
+        lines.append(f"| {run.name}, training | {np.nanmax(minutes):.1f} | " + " | ".join(
             f"{lv:.2f} | {fl:.0f}" for lv, fl in last) + " |")
     label_panels(axes, [("training minutes", "training level: gap (solid), hurdle (dotted)"),
                         ("training minutes", "training level: ditch (solid), forest (dotted)"),

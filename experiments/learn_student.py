@@ -83,7 +83,7 @@ from omegaconf import OmegaConf  # noqa: E402
 
 from legoh.checkpoint import load_checkpoint, save_checkpoint  # noqa: E402
 from legoh.eval.benchmark import BENCHMARK_VERSION, student_eval_env_fn  # noqa: E402
-from legoh.policies.embodiment import with_checkpoint_body  # noqa: E402
+from legoh.policies.embodiment import LEGACY_FEET, with_checkpoint_body  # noqa: E402
 from legoh.policies.oracle import load_teacher  # noqa: E402
 from legoh.policies.pretrained import shipped_oracle  # noqa: E402
 from legoh.policies.student import build_student, make_student_env, state_shapes  # noqa: E402
@@ -196,10 +196,14 @@ def bench_config(args, teacher: Path):
     if ckpt.is_file():
         trained = torch.load(ckpt, map_location="cpu", weights_only=False)["config"]
         algo = {**trained["algo"], "oracle_checkpoint": str(teacher)}
+        # the camera and the feet it learned with (a config that stored no feet: source)
         cfg = OmegaConf.merge(cfg, {"algo": algo, "env": {"depth": trained["env"]["depth"]},
-                                    "robot": {"camera": trained["robot"]["camera"]}})
-    # the feet it trained on: the run's checkpoint's, else its teacher's
-    return with_checkpoint_body(cfg, ckpt if ckpt.is_file() else teacher)
+                                    "robot": {"camera": trained["robot"]["camera"],
+                                              "feet_collider": trained["robot"].get(
+                                                  "feet_collider", LEGACY_FEET)}})
+    elif Path(teacher).is_file():  # no run yet: its teacher's feet
+        cfg = with_checkpoint_body(cfg, teacher)
+    return cfg
 
 
 def bench_policy(make_env, policy) -> dict:

@@ -63,6 +63,8 @@ def make(flat: tuple[DictConfig, Scene]) -> Iterator[EnvFactory]:
         if cfg is None:
             cfg, scene = flat
         env_cfg = OmegaConf.to_object(cfg.env)
+        # at the trail start unless a test asks otherwise: these tests place robots there
+        env_cfg.spawn_along = 0.0
         for name, value in env_fields.items():
             setattr(env_cfg, name, value)
         env = HikingEnv(OmegaConf.to_object(cfg.robot), OmegaConf.to_object(cfg.trail),
@@ -234,8 +236,9 @@ def test_spawn_range_without_a_waypoint_takes_the_closest_never_the_terminus(
     np.testing.assert_allclose(t.length[tile] - t.cum_length[tile, goal - 1], left, atol=1e-6)
 
 
-def test_spawn_at_the_trail_start_by_default(make: EnvFactory) -> None:
-    """Training (env.spawn_remaining unset) starts at the trail start, goal index 0."""
+def test_spawn_at_the_trail_start_without_spawn_along(make: EnvFactory) -> None:
+    """Training (env.spawn_remaining unset) with env.spawn_along=0 (the fixture's) starts at
+    the trail start, goal index 0 (the share along the trail: tests/test_spawns.py)."""
     env = make(4)
     assert env.cfg.spawn_remaining is None
     tile, goal, xy, _ = spawn_of(env.reset())

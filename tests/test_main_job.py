@@ -51,9 +51,10 @@ def test_the_default_run_starts_from_the_shipped_oracle_and_none_from_scratch(tm
 
 def test_the_default_reward_tracks_the_velocity_toward_the_waypoint() -> None:
     cfg = compose_config()
-    assert cfg.env.reward_preset == "hike"
-    weights = preset_weights("hike", {}, {})
-    assert weights["tracking_waypoint_vel"] == 1.0 and weights["tracking_lin_vel"] == 0.0
+    assert cfg.env.reward_preset == "leap"  # hike + clearance terms (docs/oracle.md)
+    for preset in ("leap", "hike"):
+        weights = preset_weights(preset, {}, {})
+        assert weights["tracking_waypoint_vel"] == 1.0 and weights["tracking_lin_vel"] == 0.0
     walk = walk_weights()
     assert {k: v for k, v in hike_weights().items() if not k.startswith("tracking_")} == {
         k: v for k, v in walk.items() if not k.startswith("tracking_")}

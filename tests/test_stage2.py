@@ -85,7 +85,8 @@ def l_trail() -> TrailTable:
                       length=np.array([15.0]), start=np.zeros((1, 3)), start_yaw=one,
                       terminus=np.array([[10.0, 5.0]]), middle=np.array([[5.0, 5.0]]),
                       category=np.zeros(1, int), level=np.zeros(1, int),
-                      variant=np.zeros(1, int)).to(torch.device("cpu"), torch.float64)
+                      variant=np.zeros(1, int), ahead=np.zeros((1, 3), bool)
+                      ).to(torch.device("cpu"), torch.float64)
 
 
 def test_progress_along_the_path_and_in_a_line() -> None:
