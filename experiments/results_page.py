@@ -239,18 +239,23 @@ def hill_section() -> list[str]:
 
 
 def study_section() -> list[str]:
-    """The paper's study at CPU scale: ``paper_tables.md``'s tables, its intro left out."""
+    """The paper's study at CPU scale: each of ``paper_tables.md``'s tables by its title and
+    its agreement line, with a link to the tables themselves (the page stays a summary)."""
     path = RESULTS / "paper_tables.md"
     if not path.exists():
         return []
-    body = path.read_text(encoding="utf-8").split("\n## ", 1)
-    if len(body) < 2:
-        return []
-    tables = ("## " + body[1]).replace("\n## ", "\n### ").replace("## ", "### ", 1)
-    return ["## The paper's study at CPU scale", "",
-            f"From [`{rel(path)}`]({rel(path)}) (`python experiments/paper_tables.py`): our "
-            "jobs beside the appendix's tables; compare the orderings, not the values.", "",
-            tables, ""]
+    lines = ["## The paper's study at CPU scale", "",
+             f"From [`{rel(path)}`]({rel(path)}) (`python experiments/paper_tables.py`): our "
+             "jobs beside the appendix's tables, per metric; compare the orderings, not the "
+             "values. Each table and how many orderings agree:", ""]
+    title = None
+    for line in path.read_text(encoding="utf-8").splitlines():
+        if line.startswith("## "):
+            title = line[3:]
+        elif line.startswith("Where both separate") and title is not None:
+            lines += [f"- **{title}**: {line[0].lower()}{line[1:]}"]
+            title = None
+    return lines + [""]
 
 
 def write_page() -> Path:
