@@ -9,7 +9,7 @@
 #   bash experiments/gpu_check.sh             # the last part: join, install, check
 #
 # The check: the parity tests on CUDA (tests/test_warp_sim.py --warp-device cuda), then
-# bench_env.py --backend warp at N = 1024, 4096, 8192 with and without depth, the chunk-size
+# bench.py env --backend warp at N = 1024, 4096, 8192 with and without depth, the chunk-size
 # table on the GPU, and a TRAIN_SECONDS oracle training (sim=warp device=cuda) where the env
 # runs on the Warp backend. Figures and logs go to experiments/results/gpu_check/ and, on the
 # lent machine, to $OUT.
@@ -77,9 +77,9 @@ export PYTHONPATH=${PYTHONPATH:-}:$PWD
 if [ -n "${INSTALL_ONLY:-}" ]; then exit 0; fi  # a dry run of the install alone
 stage parity 150 $PY -m pytest tests/test_warp_sim.py -q --warp-device "$DEVICE" -p no:cacheprovider
 # shellcheck disable=SC2086
-stage bench_env 100 $PY experiments/bench_env.py --backend warp --device "$DEVICE" \
+stage bench_env 100 $PY experiments/bench.py env --backend warp --device "$DEVICE" \
   --sizes $SIZES --warp-steps 20 --results "$RESULTS"
-stage chunks 60 $PY experiments/bench_warp_chunks.py --device "$DEVICE" --num-envs "$CHUNK_ENVS" \
+stage chunks 60 $PY experiments/bench.py warp-chunks --device "$DEVICE" --num-envs "$CHUNK_ENVS" \
   --steps 10 --skip-cpu --results "$RESULTS"
 if $PY -c "import legoh.envs.physics" 2>/dev/null; then
   rest=$(( $(left) - 15 )); (( TRAIN_SECONDS > rest )) && TRAIN_SECONDS=$rest

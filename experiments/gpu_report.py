@@ -2,10 +2,10 @@
 
     python experiments/gpu_report.py experiments/results/gpu_check
 
-Reads bench_env_warp_<device>.json (physics ceiling, depth, env rates by N), the chunk table
-and the oracle run's train.csv (frames_per_s per iteration: policy steps/s end to end, the
-target being >= 100k for the H1 oracle on RandomMix), and writes summary.md and summary.png
-beside them.
+Reads the newest Warp run of bench_env.json (physics ceiling, depth, env rates by N) and of
+bench_warp_chunks.json (the chunk table), and the oracle run's train.csv (frames_per_s per
+iteration: policy steps/s end to end, the target being >= 100k for the H1 oracle on
+RandomMix), and writes summary.md and summary.png beside them.
 """
 
 from __future__ import annotations
@@ -23,9 +23,12 @@ import matplotlib.pyplot as plt  # noqa: E402
 TARGET = 100_000  # policy steps/s end to end, H1 oracle on RandomMix, one H100-class GPU
 
 
-def load_json(folder: Path, pattern: str) -> dict | None:
-    files = sorted(folder.glob(pattern))
-    return json.loads(files[0].read_text()) if files else None
+def newest_run(path: Path, section: str) -> dict | None:
+    """The newest run in the results file ``path`` whose results hold ``section``."""
+    if not path.exists():
+        return None
+    return next((run for run in json.loads(path.read_text())["runs"]
+                 if section in run["results"]), None)
 
 
 def training_rates(folder: Path) -> list[tuple[int, float]]:
@@ -40,15 +43,14 @@ def training_rates(folder: Path) -> list[tuple[int, float]]:
 
 
 def main(folder: Path) -> None:
-    bench = load_json(folder, "bench_env_warp_*.json")
-    chunks = load_json(folder, "bench_warp_chunks_*.json")
+    bench = newest_run(folder / "bench_env.json", "warp_rows")
+    chunks = newest_run(folder / "bench_warp_chunks.json", "rows")
     train = training_rates(folder)
     lines = ["# GPU check", ""]
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
     if bench:
-        rows = bench["rows"]
-        lines += [f"Machine: {bench['machine'].get('gpu', 'CPU')}, torch "
-                  f"{bench['machine']['torch']}.", "",
+        rows = bench["results"]["warp_rows"]
+        lines += [f"Machine: {bench['machine']}.", "",
                   "| N | physics steps/s | physics + depth@10Hz | env | env + depth |",
                   "|---|---|---|---|---|"]
         for r in rows:
@@ -69,9 +71,9 @@ def main(folder: Path) -> None:
                     title="MuJoCo Warp, H1 RandomMix")
         axes[0].legend()
     if chunks:
-        lines += ["", f"Chunk size ({chunks['meta']['num_envs']} worlds):", "",
+        lines += ["", f"Chunk size ({chunks['results']['num_envs']} worlds):", "",
                   "| chunk m | fields | steps/s | depth ms/frame |", "|---|---|---|---|"]
-        for r in chunks["rows"]:
+        for r in chunks["results"]["rows"]:
             name = "one field" if r["nhfield"] == 1 else f"{r['chunk_m']:g}"
             lines.append(f"| {name} | {r['nhfield']} | {r['warp_steps_per_s']:.0f} "
                          f"| {r['warp_depth_s_per_frame'] * 1e3:.1f} |")

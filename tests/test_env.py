@@ -128,7 +128,7 @@ def test_compiled_step_equals_the_eager_one(make: EnvFactory, monkeypatch) -> No
     (fullgraph: a term that breaks the graph fails here) with the same state, bookkeeping,
     rewards and observations as the eager env, resets included. The aot_eager backend
     runs the traced graph with torch's own kernels (the inductor's C++ build is what
-    experiments/bench_env.py times)."""
+    experiments/bench.py env times)."""
     import functools
 
     monkeypatch.setattr(torch, "compile", functools.partial(torch.compile, backend="aot_eager"))

@@ -146,7 +146,7 @@ class DepthConfig:
     # 1.5 s old at 10 Hz
     history: int = 16
     stride: int = 5
-    width: int = 32  # pixels: the cost of depth grows with pixels (experiments/bench_env.py)
+    width: int = 32  # pixels: the cost of depth grows with pixels (experiments/bench.py env)
     height: int = 24  # pixels
     far: float = 3.0  # m: range clip; frames are depth / far - 0.5
 
@@ -315,7 +315,7 @@ class EnvConfig:
     # torch.compile what a step derives from the physics (state, terminations, rewards,
     # the state's observation terms) into one graph per env: about half the milliseconds
     # outside the physics, 4-15 s of compiling at the first step and first reset (a C++
-    # compiler on the CPU; docs/env.md, experiments/bench_env.py). None (auto): on the CPU
+    # compiler on the CPU; docs/env.md, experiments/bench.py env). None (auto): on the CPU
     # from COMPILE_MIN_ENVS robots up where a C++ compiler works; true: always; false: never
     compile: bool | None = None
     # reward preset (REWARD_PRESETS): leap (default: hike + clearance and air-time terms) |

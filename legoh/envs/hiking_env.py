@@ -11,36 +11,29 @@ The interface (keys in ``legoh.keys``; docs/env.md has shapes, frames and units)
 
 The env is orchestration: physics from ``legoh.envs.physics`` (its device is the env's),
 one ``StepState`` per step (``mdp.state``), then the term tables of ``mdp.events``,
-``mdp.rewards``, ``mdp.terminations`` and ``mdp.observations``, all torch on the device.
+``mdp.rewards``, ``mdp.terminations`` and ``mdp.observations``, all torch on the device;
+its fixed tensors from ``constants``, whether it compiles from ``compilation``.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import torch
-from tensordict import TensorDict, TensorDictBase
+from tensordict import TensorDictBase
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
 from legoh import keys
 from legoh.config import EnvConfig, RobotConfig, SimConfig, TrailConfig
 from legoh.config.env import LevelRule
-from legoh.envs.mdp import events, observations, rewards, support
-from legoh.envs.mdp.spawns import SpawnSupport
-from legoh.envs.mdp.state import (
-    AirTime,
-    Goals,
-    Grid,
-    Memory,
-    NavProgress,
-    TrailTable,
-    as_index,
-    compute_state,
-)
-from legoh.envs.mdp.terminations import TERMINATIONS, Outcome, check_terminations
+from legoh.envs.compilation import derivations
+from legoh.envs.constants import set_constants
+from legoh.envs.mdp import events, observations, rewards
+from legoh.envs.mdp.state import AirTime, Goals, Memory, NavProgress, compute_state
+from legoh.envs.mdp.terminations import TERMINATIONS, check_terminations, diverged_envs, no_flags
 from legoh.envs.physics import make_physics, physics_device, sim_options
 from legoh.envs.randomization import draw_physics
-from legoh.envs.scene import Scene, build_scene, feet_rest_height
+from legoh.envs.scene import Scene, build_scene
 from legoh.envs.terrain import build_terrain_map
 
 
@@ -83,7 +76,7 @@ class HikingEnv(EnvBase):
                                                      env.depth.height, env.depth.far,
                                                      env.depth.backend)
                           if env.depth.enabled else None)
-        self._constants(robot)
+        set_constants(self, robot)
         self._terms()
         self.global_steps = 0  # vectorised steps: the randomisation schedule reads it
         self.randomization = events.RandomizationSchedule(env.randomization,
@@ -95,38 +88,10 @@ class HikingEnv(EnvBase):
         self._diverged = torch.zeros(self.num_envs, dtype=torch.bool, device=self.device)
         self._make_specs()
         # what a step and a reset derive from the physics: eager, or one compiled graph each
-        self._after_step, self._after_reset = self._derive_step, self._derive_reset
-        if _wants_compile(env.compile, self.device, num_envs):
-            self._after_step = torch.compile(self._derive_step, dynamic=False, fullgraph=True)
-            self._after_reset = torch.compile(self._derive_reset, dynamic=False, fullgraph=True)
+        self._after_step, self._after_reset = derivations(
+            self._derive_step, self._derive_reset, env.compile, self.device, num_envs)
 
     # ----------------------------------------------------------------- set-up
-    def _constants(self, robot: RobotConfig) -> None:
-        dev, dt, r, tm = self.device, self.dtype, self.robot, self.terrain
-
-        def t(x, dtype=dt) -> torch.Tensor:
-            return torch.as_tensor(np.asarray(x), device=dev).to(dtype)
-
-        joints = list(r.actuated_joints)
-        self.hip_idx = t([joints.index(j) for j in robot.hip_joints], torch.int64)
-        self.qpos_adr, self.dof_adr = as_index(self.scene.qpos_adr), as_index(self.scene.dof_adr)
-        self.default_pose, self.joint_range = t(r.default_pose), t(r.joint_range)
-        self.action_scale = t(r.action_scale)
-        self.qpos0 = t(self.scene.model.qpos0)
-        self.feet_rest_height = t(feet_rest_height(self.scene))
-        self.trails = TrailTable.from_map(tm)  # numpy, for callers; trails_t on the device
-        self.trails_t = self.trails.to(dev, dt)
-        self.ground = Grid(tm.heights, tm.origin, tm.resolution, dev, dt)
-        self.scan_grid = Grid(self.scene.scan_heights, tm.origin, tm.resolution, dev, dt)
-        self.support, self.clock_grid = support.terrain_fields(self.scene, self.cfg, dev, dt)
-        self.edges = Grid(tm.edge_mask, tm.origin, tm.resolution, dev, dt, torch.bool)
-        self.scan_rotor = observations.scan_rotor(observations.scan_points(dev, dt)
-                                                  / self.scan_grid.res)
-        self.goal_offsets = torch.arange(observations.NUM_EXPERT_GOALS, device=dev)
-        self.physics_features = t(self.physics.as_features(), torch.float32)
-        self.push_every = max(1, int(round(self.cfg.randomization.push_interval_s / self.dt)))
-        self.spawn_support = SpawnSupport(self)  # where a robot may start along a trail
-
     def _terms(self) -> None:
         """Per-env bookkeeping and the stateful terms; then the observation table."""
         n, dev, dt, c = self.num_envs, self.device, self.dtype, self.cfg
@@ -165,7 +130,7 @@ class HikingEnv(EnvBase):
         n, f32, none = self.num_envs, torch.float32, self._diverged
         history = self.history.buf.clone()
         self.state = compute_state(self)
-        sample = self._observe(self._no_flags(none))
+        sample = observations.observe(self, no_flags(self.terminations, none))
         self.history.buf = history
         self.observation_spec = observations.spec_of(sample)
         clip = self.cfg.action_clip
@@ -189,19 +154,15 @@ class HikingEnv(EnvBase):
         if len(ids):
             self._reset_envs(ids)
         terms = self._after_reset(fresh)
-        return self._observe(self._no_flags(torch.zeros_like(fresh)), terms)
+        return observations.observe(self, no_flags(self.terminations, torch.zeros_like(fresh)),
+                                    terms)
 
     def _derive_reset(self, fresh: torch.Tensor) -> dict:
         """The state after a reset (``fresh`` (N,) bool: the envs reset) and the
         observation terms of the state alone."""
         self.state = compute_state(self)
         self.state.advance = fresh  # only reset envs get a new history entry
-        return self._state_terms()
-
-    def _no_flags(self, none: torch.Tensor) -> dict[str, torch.Tensor]:
-        """The info flags of a step that ended nothing (``none``: (N,) False)."""
-        names = [k for k, t in self.terminations.items() if t.outcome != Outcome.time_out]
-        return {**dict.fromkeys(names, none), "diverged": none}
+        return observations.state_terms(self)
 
     def _reset_envs(self, ids: torch.Tensor) -> None:
         """The reset events (curriculum, spawn, delay, command), then the stateful terms."""
@@ -231,13 +192,18 @@ class HikingEnv(EnvBase):
         self.steps += 1
         self.global_steps += 1
         self.randomization.step()
-        diverged = self._handle_divergence(time_before)
-        ends, reward, self.reward_parts, terms = self._after_step(action, diverged)
+        bad = self._diverged = diverged_envs(self, time_before)
+        if bad.any():  # reset in place and counted; no curriculum credit for the episode
+            ids = bad.nonzero().squeeze(1)
+            self.diverged_count += len(ids)
+            self.steps[ids] = 0
+            self._reset_envs(ids)
+        ends, reward, self.reward_parts, terms = self._after_step(action, bad)
         self.fell_last = ends.failed
         self.frame_clock += 1
         due = self.depth_cam is not None and self.frame_clock % self.cfg.depth.every == 0
         self.depth.push(self.depth.render(self) if due else None)
-        out = self._observe({**ends.flags, "diverged": diverged}, terms)
+        out = observations.observe(self, {**ends.flags, "diverged": bad}, terms)
         out.set(keys.REWARD, reward.float().unsqueeze(-1))
         out.set(keys.TERMINATED, ends.terminated.unsqueeze(-1))
         out.set(keys.TRUNCATED, ends.truncated.unsqueeze(-1))
@@ -255,49 +221,7 @@ class HikingEnv(EnvBase):
         s.failed = ends.failed
         reward, parts = rewards.compute_rewards(s, self.reward_terms, self.only_positive)
         self.memory.update(s)
-        return ends, reward, parts, self._state_terms()
-
-    def _handle_divergence(self, time_before: torch.Tensor) -> torch.Tensor:
-        """Envs whose state went non-finite or exploded are reset and counted. MuJoCo itself
-        resets an MjData whose qpos/qvel/qacc went bad (time restarts at 0, the robot jumps
-        to qpos0), so a step that did not advance time counts as diverged too."""
-        qpos, qvel = self.sim.qpos, self.sim.qvel
-        bad = (self.sim.time < time_before + 0.5 * self.dt) | ~torch.isfinite(qpos).all(1) | (
-            ~(torch.abs(qvel) <= self.cfg.divergence_qvel).all(1))  # NaN fails the <=
-        if bad.any():
-            ids = bad.nonzero().squeeze(1)
-            self.diverged_count += len(ids)
-            self.steps[ids] = 0  # no curriculum credit for a diverged episode
-            self._reset_envs(ids)
-        self._diverged = bad
-        return bad
-
-    # ----------------------------------------------------------------- observations
-    def _state_terms(self) -> dict:
-        """The terms of ``self.state`` alone (``self.state_terms``), as observed."""
-        out: dict = {}
-        for key in self.state_terms:
-            out[key] = _observed(self.observation_terms[key](self, out))
-        return out
-
-    def _observe(self, flags: dict[str, torch.Tensor], terms: dict | None = None
-                 ) -> TensorDict:
-        """Every observation term of the table on ``self.state`` (those in ``terms``
-        already computed), plus the termination flags as info signals; copies, as float32
-        (buffers change in place)."""
-        out: dict = {}
-        for key, fn in self.observation_terms.items():
-            out[key] = terms[key] if terms and key in terms else _observed(fn(self, out))
-        nested: dict[str, dict] = {}
-        for (group, name), value in out.items():
-            nested.setdefault(group, {})[name] = value
-        nested[keys.INFO].update({name: flag.clone() for name, flag in flags.items()})
-        # built without tensordict's per-leaf checks (~1 ms a step at N = 64): every value
-        # is the env's own, on its device, batch first (the spec test checks the shapes)
-        batch, dev = torch.Size([self.num_envs]), self.device
-        return TensorDict._new_unsafe(
-            {group: TensorDict._new_unsafe(values, batch_size=batch, device=dev)
-             for group, values in nested.items()}, batch_size=batch, device=dev)
+        return ends, reward, parts, observations.state_terms(self)
 
     # ----------------------------------------------------------------- curriculum state
     def curriculum_state(self) -> dict:
@@ -330,43 +254,6 @@ class HikingEnv(EnvBase):
         """Stop the physics."""
         self.sim.close()
         super().close(**kwargs)
-
-
-# env.compile=null compiles from this many robots up: there the graphs' 4-15 s of compiling
-# pay back within a minute (bench_contacts.md), and small test envs stay eager
-COMPILE_MIN_ENVS = 64
-
-
-def _wants_compile(setting: bool | None, device: torch.device, num_envs: int) -> bool:
-    """Whether the env compiles its derivations: ``env.compile`` true (refused at once where
-    no C++ compiler works) or false; None: on the CPU with a compiler, N >= COMPILE_MIN_ENVS."""
-    cpu = torch.device(device).type == "cpu"
-    if setting is not None:
-        if setting and cpu and (err := _compiler_error()):
-            raise RuntimeError(f"env.compile=true on the CPU needs a C++ compiler for "
-                               f"torch.compile ({err}); install g++ (or set CXX) or run with "
-                               "env.compile=false")
-        return bool(setting)
-    return cpu and num_envs >= COMPILE_MIN_ENVS and _compiler_error() is None
-
-
-def _compiler_error() -> str | None:
-    """Why torch.compile cannot build C++ kernels here (None: it can)."""
-    from torch._inductor.cpp_builder import get_cpp_compiler
-
-    try:
-        get_cpp_compiler()
-    except Exception as err:
-        return str(err)
-    return None
-
-
-def _observed(value):
-    """A term's value as observed: a float32 (or its own integer/bool dtype) copy, since
-    the env's buffers change in place; a nested TensorDict as it is."""
-    if isinstance(value, TensorDictBase):
-        return value
-    return value.to(torch.float32 if value.is_floating_point() else value.dtype, copy=True)
 
 
 def make_env(cfg, num_envs: int, evaluation: bool = False, **overrides) -> HikingEnv:

@@ -1,7 +1,7 @@
 """Egocentric depth by ray casting (``mj_multiRay``): no GL context, batched over envs.
 
 The renderer alternative (MuJoCo's EGL ``Renderer``) is measured against this one in
-``experiments/bench_env.py``. This ray caster is the exact reference
+``experiments/bench.py env``. This ray caster is the exact reference
 (``env.depth.backend=multiray``) of the default ray-march, ``legoh.envs.heightmap_depth``
 (docs/env.md gives the figures).
 """

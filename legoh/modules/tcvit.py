@@ -85,7 +85,7 @@ class TCViTConfig:
 
 
 PRESETS: dict[str, TCViTConfig] = {
-    # ~0.4 M parameters: trains at 64 envs on a 2-core CPU (experiments/model_size.py)
+    # ~0.4 M parameters: trains at 64 envs on a 2-core CPU (experiments/bench.py model-size)
     "small": TCViTConfig(),
     # 31.25 M (GRU) / 55.92 M (causal transformer) in the paper; sizes chosen to land within a
     # few percent of both (docs/tcvit.md). The image is the camera's native 64 x 48

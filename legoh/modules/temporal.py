@@ -72,7 +72,7 @@ class CausalTransformerCore(TemporalCore):
     itself and the valid tokens before it) and returns the new token's output. Only input
     tokens are stored, not per-layer keys and values, so the state stays one plain tensor;
     the price is re-running the ``context`` past tokens through every layer each step
-    (counted in experiments/model_size.py).
+    (counted in experiments/bench.py model-size).
 
     Args:
         in_dim: input size. dim: token width (= out_dim). layers: transformer layers.

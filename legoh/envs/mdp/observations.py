@@ -246,6 +246,40 @@ def observation_table(env) -> dict[tuple[str, str], ObsFn]:
     return table
 
 
+def observed(value):
+    """A term's value as observed: a float32 (or its own integer/bool dtype) copy, since
+    the env's buffers change in place; a nested TensorDict as it is."""
+    if isinstance(value, TensorDictBase):
+        return value
+    return value.to(torch.float32 if value.is_floating_point() else value.dtype, copy=True)
+
+
+def state_terms(env) -> dict:
+    """The terms of ``env.state`` alone (``env.state_terms``), as observed."""
+    out: dict = {}
+    for key in env.state_terms:
+        out[key] = observed(env.observation_terms[key](env, out))
+    return out
+
+
+def observe(env, flags: dict[str, torch.Tensor], terms: dict | None = None) -> TensorDict:
+    """Every term of ``env``'s table on ``env.state`` (those in ``terms`` already computed),
+    plus the termination ``flags`` as info signals, as one TensorDict of copies."""
+    out: dict = {}
+    for key, fn in env.observation_terms.items():
+        out[key] = terms[key] if terms and key in terms else observed(fn(env, out))
+    nested: dict[str, dict] = {}
+    for (group, name), value in out.items():
+        nested.setdefault(group, {})[name] = value
+    nested[keys.INFO].update({name: flag.clone() for name, flag in flags.items()})
+    # built without tensordict's per-leaf checks (~1 ms a step at N = 64): every value
+    # is the env's own, on its device, batch first (the spec test checks the shapes)
+    batch, dev = torch.Size([env.num_envs]), env.device
+    return TensorDict._new_unsafe(
+        {group: TensorDict._new_unsafe(values, batch_size=batch, device=dev)
+         for group, values in nested.items()}, batch_size=batch, device=dev)
+
+
 def spec_of(sample: TensorDictBase, key: tuple[str, ...] = ()) -> Composite:
     """The spec of one observation the table produced: booleans are flags, depth frames
     are bounded to [-0.5, 0.5], everything else is unbounded of its dtype."""

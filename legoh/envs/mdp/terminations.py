@@ -90,3 +90,18 @@ def check_terminations(table: dict[str, Termination], env, s: StepState,
     reported = {name: flags[name] for name, term in table.items()
                 if term.outcome != Outcome.time_out}
     return Ends(terminated, truncated, failure & ~success, reported)
+
+
+def no_flags(table: dict[str, Termination], none: torch.Tensor) -> dict[str, torch.Tensor]:
+    """The info flags of a step that ended nothing (``none``: (N,) False)."""
+    names = [k for k, t in table.items() if t.outcome != Outcome.time_out]
+    return {**dict.fromkeys(names, none), "diverged": none}
+
+
+def diverged_envs(env, time_before: torch.Tensor) -> torch.Tensor:
+    """(N,) bool: envs whose state went non-finite or exploded in the last physics step.
+    MuJoCo itself resets an MjData whose qpos/qvel/qacc went bad (time restarts at 0, the
+    robot jumps to qpos0), so a step that did not advance time counts as diverged too."""
+    sim = env.sim
+    return (sim.time < time_before + 0.5 * env.dt) | ~torch.isfinite(sim.qpos).all(1) | (
+        ~(torch.abs(sim.qvel) <= env.cfg.divergence_qvel).all(1))  # NaN fails the <=

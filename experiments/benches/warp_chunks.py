@@ -7,43 +7,33 @@ map, N worlds standing at N tile starts, each chunk size gets: policy steps/s of
 step (4 substeps), seconds per depth frame of N cameras (Warp ray cast), and the same two on
 the CPU backend (``mujoco.rollout``, ``DepthRaycaster``) for reference.
 
-    python experiments/bench_warp_chunks.py [--device cpu|cuda] [--num-envs 8] [--steps 20]
+    python experiments/bench.py warp-chunks [--device cpu|cuda] [--num-envs 8] [--steps 20]
 
-Writes experiments/results/bench_warp_chunks_<device>.{json,md}.
+Adds a run to experiments/results/bench_warp_chunks.{json,md} (of kind ``<device>``).
 """
 
 from __future__ import annotations
 
 import argparse
-import functools
-import json
 import os
-import platform
 import time
-from pathlib import Path
 
-# MuJoCo Warp's compiled kernels: the same cache as the tests (before warp is initialised)
-os.environ.setdefault("WARP_CACHE_PATH", str(Path(__file__).resolve().parents[1] / ".warp_cache"))
+import mujoco
+import numpy as np
+import torch
+from mujoco import rollout
+from omegaconf import OmegaConf
 
-import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
-import torch  # noqa: E402
-from mujoco import rollout  # noqa: E402
-from omegaconf import OmegaConf  # noqa: E402
+from legoh.config.compose import compose_config
+from legoh.envs.randomization import PhysicsDraw
+from legoh.envs.scene import Scene, build_scene
+from legoh.envs.sensors import DepthRaycaster, camera_poses
+from legoh.envs.terrain import build_terrain_map
+from legoh.envs.warp_sim import WarpSim
 
-from legoh.config.compose import compose_config  # noqa: E402
-from legoh.envs.randomization import PhysicsDraw  # noqa: E402
-from legoh.envs.scene import Scene, build_scene  # noqa: E402
-from legoh.envs.sensors import (
-    DepthRaycaster,  # noqa: E402
-    camera_poses,  # noqa: E402
-)
-from legoh.envs.terrain import build_terrain_map  # noqa: E402
-from legoh.envs.warp_sim import WarpSim  # noqa: E402
-
-print = functools.partial(print, flush=True)  # noqa: A001 - progress shows as it happens
-ROOT = Path(__file__).resolve().parents[1]
-RESULTS = ROOT / "experiments" / "results"
+RESULTS = "bench_warp_chunks"
+TITLE = "Height-field chunk size: H1 on the full RandomMix map"
+TORCH_THREADS = None  # torch's default
 SINGLE = 1e4  # m: a chunk larger than any map, i.e. one height field
 FOVY, WIDTH, HEIGHT, FAR = 87.0, 32, 24, 3.0  # the H1 camera's defaults (conf/robot/h1.yaml)
 
@@ -104,7 +94,7 @@ def warp_physics(scene: Scene, n: int, steps: int, device: str, **warp_options: 
             "overflow_worlds": overflow}
 
 
-def measure(scene: Scene, n: int, steps: int, device: str, cpu: bool = True) -> dict:
+def measure_scene(scene: Scene, n: int, steps: int, device: str, cpu: bool = True) -> dict:
     """Warp and (``cpu``) the CPU backend side by side on one scene."""
     warp = warp_physics(scene, n, steps, device)
     row = {"nhfield": int(scene.model.nhfield), "ngeom": int(scene.model.ngeom),
@@ -147,55 +137,54 @@ def cpu_backend(scene: Scene, n: int, steps: int) -> dict:
     return {"cpu_steps_per_s": n / cpu_s, "cpu_depth_s_per_frame": cpu_depth_s}
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--device", default="cpu", help="Warp device: cpu | cuda | cuda:N")
     parser.add_argument("--num-envs", type=int, default=8)
     parser.add_argument("--steps", type=int, default=20, help="timed policy steps per size")
     parser.add_argument("--chunks", type=float, nargs="+", default=[4.0, 8.0, 16.0, 32.0,
                                                                    SINGLE])
     parser.add_argument("--skip-cpu", action="store_true", help="Warp rows only (large N)")
-    parser.add_argument("--results", type=Path, default=RESULTS)
-    args = parser.parse_args()
+
+
+def kind(args: argparse.Namespace) -> str:
+    return args.device
+
+
+def measure(args: argparse.Namespace) -> dict:
+    """One row per chunk size."""
     cfg = compose_config("robot=h1", "trail=randommix")
     terrain = build_terrain_map(OmegaConf.to_object(cfg.trail), cfg.seed)
     rows = []
     for chunk in args.chunks:
         scene = build_scene(OmegaConf.to_object(cfg.robot), terrain, cfg.sim.dt,
                             hfield_chunk=chunk)
-        row = {"chunk_m": chunk, **measure(scene, args.num_envs, args.steps, args.device,
-                                           cpu=not args.skip_cpu)}
+        row = {"chunk_m": chunk, **measure_scene(scene, args.num_envs, args.steps,
+                                                 args.device, cpu=not args.skip_cpu)}
         rows.append(row)
         print(f"chunk {'single' if chunk >= SINGLE else f'{chunk:g} m':>7}: "
               f"{row['nhfield']:4d} fields  warp {row['warp_steps_per_s']:8.1f} steps/s, "
               f"depth {row['warp_depth_s_per_frame'] * 1e3:7.1f} ms/frame | cpu "
               f"{row['cpu_steps_per_s']:8.1f} steps/s, depth "
               f"{row['cpu_depth_s_per_frame'] * 1e3:7.1f} ms/frame")
-    write(rows, args)
+    return {"device": args.device, "num_envs": args.num_envs, "rows": rows}
 
 
-def write(rows: list[dict], args: argparse.Namespace) -> None:
-    args.results.mkdir(parents=True, exist_ok=True)
-    stem = f"bench_warp_chunks_{args.device.replace(':', '')}"
-    meta = {"device": args.device, "num_envs": args.num_envs, "cpus": os.cpu_count(),
-            "platform": platform.platform(), "mujoco": mujoco.__version__}
-    if torch.cuda.is_available() and args.device.startswith("cuda"):
-        meta["gpu"] = torch.cuda.get_device_name()
-    (args.results / f"{stem}.json").write_text(json.dumps({"meta": meta, "rows": rows},
-                                                          indent=2))
-    lines = [f"# Height-field chunk size: H1 on the full RandomMix map, {args.num_envs} worlds",
-             "", f"Warp device `{args.device}`; CPU backend on {os.cpu_count()} cores. Policy "
-             "steps/s (4 substeps); depth: one 32x24 frame for every world.", "",
+def summary(run: dict) -> str:
+    best = max(run["results"]["rows"], key=lambda r: r["warp_steps_per_s"])
+    name = "single" if best["chunk_m"] >= SINGLE else f"{best['chunk_m']:g} m"
+    return f"fastest Warp step with {name} chunks: {best['warp_steps_per_s']:.0f} steps/s"
+
+
+def markdown(run: dict) -> str:
+    result = run["results"]
+    lines = [f"{result['num_envs']} worlds; Warp device `{result['device']}`; CPU backend on "
+             "the machine's cores. Policy steps/s (4 substeps); depth: one 32x24 frame for "
+             "every world.", "",
              "| chunk | height fields | Warp steps/s | Warp depth ms | CPU steps/s "
              "| CPU depth ms |", "|---|---|---|---|---|---|"]
-    for r in rows:
+    for r in result["rows"]:
         name = "single" if r["chunk_m"] >= SINGLE else f"{r['chunk_m']:g} m"
         lines.append(f"| {name} | {r['nhfield']} | {r['warp_steps_per_s']:.1f} | "
                      f"{r['warp_depth_s_per_frame'] * 1e3:.1f} | {r['cpu_steps_per_s']:.1f} | "
                      f"{r['cpu_depth_s_per_frame'] * 1e3:.1f} |")
-    (args.results / f"{stem}.md").write_text("\n".join(lines) + "\n")
-    print(f"wrote {args.results / stem}.json and .md")
-
-
-if __name__ == "__main__":
-    main()
+    return "\n".join(lines) + "\n"

@@ -1,6 +1,6 @@
 """The stage-2 student loop beside the oracle loop: frames/s and where the student's time goes.
 
-    python experiments/bench_student.py [--sizes 64 256] [--iterations 4]
+    python experiments/bench.py student [--sizes 64 256] [--iterations 4]
         [--variants "" "algo.update_precision=bfloat16 algo.distill_epochs=1 algo.epochs=3"]
         [--note "..."] [--tag compiled]
 
@@ -24,7 +24,7 @@ Per batch size N, in one run (these machines are noisy, so compare within a run)
                  loop's work allows with every core busy all the time. The student loop over
                  it is the loop's parallel efficiency; a target above it needs less work, not
                  better scheduling.
-Writes experiments/results/bench_student[_<tag>].{md,json}. The target (issue 20): the
+Adds a run to experiments/results/bench_student.{md,json}. The target (issue 20): the
 student loop at >= 2,500 frames/s at N = 256 on 2 cores.
 """
 
@@ -33,28 +33,23 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-os.environ.setdefault("MUJOCO_GL", "egl")
+import numpy as np
+from omegaconf import OmegaConf
 
-import numpy as np  # noqa: E402
-import torch  # noqa: E402
-from omegaconf import OmegaConf  # noqa: E402
+from benches.train import bare_rate
+from legoh.config.compose import compose_config
+from legoh.envs.hiking_env import make_env
+from legoh.eval.curves import read_columns
+from legoh.train.oracle import train_oracle
+from legoh.train.unified import train_student
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_train import bare_rate  # noqa: E402
-
-from legoh.config.compose import compose_config  # noqa: E402
-from legoh.envs.hiking_env import make_env  # noqa: E402
-from legoh.eval.curves import read_columns  # noqa: E402
-from legoh.train.oracle import train_oracle  # noqa: E402
-from legoh.train.unified import train_student  # noqa: E402
-
-ROOT = Path(__file__).resolve().parents[1]
-OUT = ROOT / "experiments" / "results"
+RESULTS = "bench_student"
+TITLE = "Student loop vs oracle loop (frames/s, one run)"
+TORCH_THREADS = 1
 PARTS = ("collect", "prior", "ppo", "distill")  # the student's time columns (prior: the
 # oracle's labels and the prior's steps, timed together by StudentDistillation.update)
 TARGET = 2500.0
@@ -79,17 +74,16 @@ def loop(train, cfg, iterations: int) -> dict[str, float]:
     return out
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sizes", type=int, nargs="+", default=[64, 256])
     parser.add_argument("--iterations", type=int, default=4)
     parser.add_argument("--variants", nargs="+", default=[""],
                         help="student loops to time, each a space-separated list of Hydra "
                              "overrides ('' = the defaults)")
-    parser.add_argument("--note", default="", help="a line on the conditions of this run")
-    parser.add_argument("--tag", default="", help="results as bench_student_<tag>.{md,json}")
-    args = parser.parse_args()
-    torch.set_num_threads(1)
+
+
+def measure(args: argparse.Namespace) -> dict:
+    """Per N: the bare env, the oracle loop, then each student loop variant."""
     rows = []
     for n in args.sizes:
         t0 = time.perf_counter()
@@ -124,13 +118,23 @@ def main() -> None:
                    "depth_backend": str(depth.backend.value),
                    "wall_s": time.perf_counter() - t0}
             rows.append(row)
-            print(json.dumps(row), flush=True)
-    stem = f"bench_student_{args.tag}" if args.tag else "bench_student"
-    (OUT / f"{stem}.json").write_text(json.dumps(
-        {"sizes": rows, "target_fps_at_256": TARGET, "torch_threads": 1, "cpus": os.cpu_count(),
-         "note": args.note}, indent=2))
-    lines = ["# Student loop vs oracle loop (frames/s, one run, 1 torch thread, "
-             f"{os.cpu_count()} CPUs)", "", *([args.note, ""] if args.note else []),
+            print(json.dumps(row))
+    return {"sizes": rows, "target_fps_at_256": TARGET}
+
+
+def summary(run: dict) -> str:
+    """The student loop's frames/s per N, one figure per variant."""
+    by_n: dict[int, list[str]] = {}
+    for r in run["results"]["sizes"]:
+        by_n.setdefault(r["N"], []).append(f"{r['student_loop']:.0f}")
+    return "student loop " + ", ".join(f"N={n} {' / '.join(v)}" for n, v in by_n.items()) + (
+        " frames/s")
+
+
+def markdown(run: dict) -> str:
+    rows = run["results"]["sizes"]
+    threads = run["conditions"].get("torch_threads", 1)
+    lines = [f"{threads} torch thread(s). "
              f"Target (issue 20): the student loop >= {TARGET:.0f} frames/s at N = 256. Depth "
              "cost: the env step with depth frames over the one without, minus 1 (depth "
              "backend in its column). Student split: shares of one iteration. Collection "
@@ -153,9 +157,4 @@ def main() -> None:
               + f" | {r['depth_backend']} | {r['collection_alone']:.0f} | {r['update_s']:.2f} | "
               f"{r['update_budget_s']:.2f} | {r['one_core']:.0f} | {r['work_bound']:.0f} | "
               f"{r['student_over_bound']:.2f} |" for r in rows]
-    (OUT / f"{stem}.md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
-
-
-if __name__ == "__main__":
-    main()
+    return "\n".join(lines) + "\n"

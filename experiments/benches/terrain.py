@@ -1,21 +1,22 @@
 """Benchmark: build time and peak memory of the terrain map.
 
-    python experiments/bench_terrain.py        # writes experiments/results/bench_terrain.{json,md}
+    python experiments/bench.py terrain   # adds a run to experiments/results/bench_terrain.*
 
 Cases: the full map (5 categories x 5 levels x 5 variants, 5 cm cells), the map at
 1, 2 and 3 variants (linear growth check), and the hill trail (5 levels x 1 variant).
 Each case runs in a fresh process so peak RSS is its own.
 """
 
-import json
+import argparse
 import multiprocessing as mp
-import platform
 import resource
 import time
-from pathlib import Path
 
+RESULTS = "bench_terrain"
+TITLE = "Terrain map build benchmark"
+TORCH_THREADS = None  # no torch
 CATEGORIES = ["randommix", "ditch", "hurdle", "gap", "forest"]
-OUT = Path(__file__).parent / "results"
+RESOLUTION = 0.05  # m: the map's cells (TrailConfig's default)
 
 
 def _case(kw: dict, queue) -> None:
@@ -47,19 +48,27 @@ def run(kw: dict) -> dict:
     return result
 
 
-def main() -> None:
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """No arguments of its own: every case."""
+
+
+def measure(args: argparse.Namespace) -> dict:
+    """Each case in a fresh process."""
     cases = {f"full_{v}v": dict(name="bench", categories=CATEGORIES, levels=5, variants=v)
              for v in (1, 2, 3, 5)}
     cases["hill"] = dict(name="hill", categories=["hill"], levels=5, variants=1,
                          tile_length=64.0, tile_width=12.0)
-    results = {name: run(kw) for name, kw in cases.items()}
-    meta = {"machine": platform.processor() or platform.machine(), "python":
-            platform.python_version(), "resolution_m": 0.05}
-    OUT.mkdir(exist_ok=True)
-    (OUT / "bench_terrain.json").write_text(json.dumps({"meta": meta, "cases": results},
-                                                       indent=2))
-    lines = ["# Terrain map build benchmark", "",
-             "`python experiments/bench_terrain.py`; 5 cm cells; one fresh process per case "
+    return {"resolution_m": RESOLUTION, "cases": {name: run(kw) for name, kw in cases.items()}}
+
+
+def summary(run: dict) -> str:
+    full = run["results"]["cases"]["full_5v"]
+    return f"full map {full['build_s']:.1f} s, peak {full['peak_rss_mib']:.0f} MiB"
+
+
+def markdown(run: dict) -> str:
+    results = run["results"]["cases"]
+    lines = [f"{run['results']['resolution_m'] * 100:g} cm cells; one fresh process per case "
              "(peak RSS includes the Python + numpy + scipy baseline; build RSS is the rise "
              "during the build).", "",
              "| case | tiles | cells (M) | build (s) | peak RSS (MiB) | build RSS (MiB) | "
@@ -71,10 +80,4 @@ def main() -> None:
                      f"{r['peak_rss_mib']:.0f} | {r['build_rss_mib']:.0f} | "
                      f"{r['heights_mib']:.0f} | {r['boxes']} | {r['cylinders']} | "
                      f"{lo:.2f} .. {hi:.2f} |")
-    lines += ["", f"Machine: {meta['machine']}, Python {meta['python']}."]
-    (OUT / "bench_terrain.md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
-
-
-if __name__ == "__main__":
-    main()
+    return "\n".join(lines) + "\n"

@@ -1,7 +1,7 @@
 """Deployment latency: one robot, one CPU core, the exported TorchScript file vs the eager
 module in the same run.
 
-    python experiments/bench_export.py   # writes experiments/results/bench_export.{md,json}
+    python experiments/bench.py export   # adds a run to experiments/results/bench_export.{md,json}
 
 For each student (LEGO-H small/paper x GRU/causal transformer, EP-H, RMA-B): the median
 time of ``encode`` (navigation, once per depth frame, 10 Hz) and ``act`` (locomotion, every
@@ -13,21 +13,20 @@ enc + act < 20 ms (or else the encoder must run beside the controller, where it 
 
 from __future__ import annotations
 
-import json
+import argparse
 import statistics
-import sys
+import tempfile
 import time
 from pathlib import Path
 
 import torch
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+from legoh.export import DeployedStudent, example_inputs, export_student
+from legoh.modules.students import StudentDims, make_student
 
-from legoh.export import DeployedStudent, example_inputs, export_student  # noqa: E402
-from legoh.modules.students import StudentDims, make_student  # noqa: E402
-
-OUT = ROOT / "experiments" / "results"
+RESULTS = "bench_export"
+TITLE = "Deployment latency, one robot, 1 CPU thread (TorchScript export; median)"
+TORCH_THREADS = 1
 PROPRIO, ACTIONS = 39, 10  # H1 (the env's proprioception and leg joints)
 CASES = [  # (label, student, preset, core, depth (T, H, W))
     ("LEGO-H small, GRU", "lego_h", "small", "gru", (4, 24, 32)),
@@ -50,7 +49,7 @@ def median_ms(fn, reps: int) -> float:
     return statistics.median(times)
 
 
-def measure(label, name, preset, core, depth, tmp: Path) -> dict:
+def measure_case(label, name, preset, core, depth, tmp: Path) -> dict:
     dims = StudentDims(proprio=PROPRIO, history=10, depth=depth)
     student = make_student(name, dims, ACTIONS, 4.8, preset=preset, core=core)
     eager = DeployedStudent(student).eval()
@@ -73,37 +72,36 @@ def measure(label, name, preset, core, depth, tmp: Path) -> dict:
     return row
 
 
-def main() -> None:
-    torch.set_num_threads(1)
-    tmp = OUT / "bench_export_tmp"
-    tmp.mkdir(parents=True, exist_ok=True)
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """No arguments of its own: every student of ``CASES``."""
+
+
+def measure(args: argparse.Namespace) -> dict:
+    """Each student of ``CASES``, exported to a temporary folder."""
     rows = []
-    for case in CASES:
-        rows.append(measure(*case, tmp))
-        r = rows[-1]
-        print(f"{r['label']:20s} encode {r['encode_ms_script']:7.2f} ms  act "
-              f"{r['act_ms_script']:6.3f} ms  load {r['core_load']:.2f}  frame step "
-              f"{r['frame_step_ms']:.1f} ms", flush=True)
-    (tmp / "policy.pt").unlink(missing_ok=True)
-    tmp.rmdir()
-    lines = ["**Deployment latency, one robot, 1 CPU thread (TorchScript export; median)**", "",
-             "| Student | params (M) | encode (ms, 10 Hz) | act (ms, 50 Hz) | core load "
+    with tempfile.TemporaryDirectory() as tmp:
+        for case in CASES:
+            rows.append(measure_case(*case, Path(tmp)))
+            r = rows[-1]
+            print(f"{r['label']:20s} encode {r['encode_ms_script']:7.2f} ms  act "
+                  f"{r['act_ms_script']:6.3f} ms  load {r['core_load']:.2f}  frame step "
+                  f"{r['frame_step_ms']:.1f} ms")
+    return {"threads": 1, "batch": 1, "proprio": PROPRIO, "actions": ACTIONS, "rows": rows}
+
+
+def summary(run: dict) -> str:
+    return "frame step (ms): " + ", ".join(f"{r['label']} {r['frame_step_ms']:.1f}"
+                                           for r in run["results"]["rows"])
+
+
+def markdown(run: dict) -> str:
+    lines = ["| Student | params (M) | encode (ms, 10 Hz) | act (ms, 50 Hz) | core load "
              "(10 enc + 50 act per s) | frame step enc + act (ms; slot 20) | 50 Hz real time "
              "| eager / TorchScript |", "|---|---|---|---|---|---|---|---|"]
-    for r in rows:
+    for r in run["results"]["rows"]:
         ok = ("yes" if r["frame_step_ms"] < 20 else
               "with the encoder beside the controller" if r["core_load"] < 1 else "no")
         lines.append(f"| {r['label']} | {r['params_M']:.2f} | {r['encode_ms_script']:.2f} | "
                      f"{r['act_ms_script']:.3f} | {r['core_load']:.2f} | "
                      f"{r['frame_step_ms']:.1f} | {ok} | {r['script_over_eager']:.2f} |")
-    text = "\n".join(lines) + "\n"
-    print(text)
-    (OUT / "bench_export.md").write_text(text, encoding="utf-8")
-    (OUT / "bench_export.json").write_text(json.dumps(
-        {"threads": 1, "batch": 1, "proprio": PROPRIO, "actions": ACTIONS, "rows": rows},
-        indent=2), encoding="utf-8")
-    print(f"[bench] wrote {OUT / 'bench_export.md'}")
-
-
-if __name__ == "__main__":
-    main()
+    return "\n".join(lines) + "\n"

@@ -14,38 +14,33 @@ Per setting: ``train_oracle`` for 1 warm-up + ``--iterations`` iterations; the f
 median of the per-iteration frames/s in train.csv (collection + PPO update + weight sync),
 warm-up left out. Set-up (env build, worker start) is reported apart.
 
-    python experiments/bench_collect.py [--iterations 5] [--num-envs 64]
+    python experiments/bench.py collect [--iterations 5] [--num-envs 64]
 
-Writes experiments/results/bench_collect.{json,md}. Absolute numbers depend on the machine;
-read the ratios to the single-process loop of the same run.
+Adds a run to experiments/results/bench_collect.{json,md}. Absolute numbers depend on the
+machine; read the ratios to the single-process loop of the same run.
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
-import functools
-import json
 import os
-import platform
 import statistics
 import tempfile
 import time
 from pathlib import Path
 
-os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco is imported: headless rendering
+import torch
+import torchrl
 
-import mujoco  # noqa: E402
-import torch  # noqa: E402
-import torchrl  # noqa: E402
+from benches.common import machine_line
+from legoh.config.compose import compose_config
+from legoh.threads import torch_threads
+from legoh.train.oracle import train_oracle
 
-from legoh.config.compose import compose_config  # noqa: E402
-from legoh.threads import torch_threads  # noqa: E402
-from legoh.train.oracle import train_oracle  # noqa: E402
-
-print = functools.partial(print, flush=True)  # noqa: A001 - progress shows as it happens
-ROOT = Path(__file__).resolve().parents[1]
-RESULTS = ROOT / "experiments" / "results"
+RESULTS = "bench_collect"
+TITLE = "Oracle training: collector processes vs the single-process loop"
+TORCH_THREADS = None  # torch's default: the baseline's learner as training runs it
 BASELINE = "sync x1 (in-process)"
 SETTINGS = {  # label -> overrides
     BASELINE: ["collector=sync", "collector.workers=1"],
@@ -58,7 +53,7 @@ SETTINGS = {  # label -> overrides
 TORCH_ONE_THREAD = {"sync x1, torch on 1 thread"}
 
 
-def measure(label: str, overrides: list[str], args) -> dict:
+def measure_setting(label: str, overrides: list[str], args) -> dict:
     """Train 1 + ``iterations`` iterations; median frames/s over all but the first."""
     frames = args.num_envs * args.steps_per_env
     cfg = compose_config(f"algo.num_envs={args.num_envs}",
@@ -89,26 +84,25 @@ def measure(label: str, overrides: list[str], args) -> dict:
     return result
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--iterations", type=int, default=5, help="measured, after 1 warm-up")
     parser.add_argument("--num-envs", type=int, default=64, help="envs in total, all settings")
     parser.add_argument("--steps-per-env", type=int, default=24)
-    args = parser.parse_args()
-    rows = [measure(label, overrides, args) for label, overrides in SETTINGS.items()]
+
+
+def measure(args: argparse.Namespace) -> dict:
+    """Every setting in turn; frames/s and their ratio to the single-process loop."""
+    rows = [measure_setting(label, overrides, args) for label, overrides in SETTINGS.items()]
     base = rows[0]["frames_per_s"]
     for row in rows:
         row["ratio_to_single_process"] = row["frames_per_s"] / base
-    result = {
-        "machine": {"cpus": os.cpu_count(), "platform": platform.platform(),
-                    "python": platform.python_version(), "torch": torch.__version__,
-                    "torchrl": torchrl.__version__, "mujoco": mujoco.__version__,
-                    "ray": _ray_version()},
-        "config": {"robot": "h1", "trail": "randommix", "num_envs": args.num_envs,
-                   "steps_per_env": args.steps_per_env, "iterations": args.iterations},
-        "rows": rows,
-    }
-    write_results(result)
+    return {"config": {"robot": "h1", "trail": "randommix", "num_envs": args.num_envs,
+                       "steps_per_env": args.steps_per_env, "iterations": args.iterations},
+            "rows": rows}
+
+
+def machine() -> str:
+    return machine_line(torchrl=torchrl.__version__, Ray=_ray_version())
 
 
 def _ray_version() -> str | None:
@@ -119,17 +113,19 @@ def _ray_version() -> str | None:
     return ray.__version__
 
 
-def write_results(result: dict) -> None:
-    RESULTS.mkdir(parents=True, exist_ok=True)
-    (RESULTS / "bench_collect.json").write_text(json.dumps(result, indent=2))
-    m, c = result["machine"], result["config"]
+def summary(run: dict) -> str:
+    best = max(run["results"]["rows"], key=lambda r: r["ratio_to_single_process"])
+    return f"best {best['label']}: {best['ratio_to_single_process']:.2f} x the single process"
+
+
+def markdown(run: dict) -> str:
+    result = run["results"]
+    c = result["config"]
     lines = [
-        "# Oracle training: collector processes vs the single-process loop", "",
-        f"`python experiments/bench_collect.py` on {m['cpus']} CPUs, torch {m['torch']}, "
-        f"torchrl {m['torchrl']}, MuJoCo {m['mujoco']}, Ray {m['ray']}. H1 on RandomMix, "
-        f"{c['num_envs']} envs in total x {c['steps_per_env']} steps per iteration in every "
-        f"setting; median of {c['iterations']} iterations after one warm-up (collection + "
-        "PPO update + weight sync, from train.csv). Set-up: env build, worker start-up, "
+        f"H1 on RandomMix, {c['num_envs']} envs in total x {c['steps_per_env']} steps per "
+        f"iteration in every setting; median of {c['iterations']} iterations after one "
+        "warm-up (collection + PPO update + weight sync, from train.csv). Set-up: env "
+        "build, worker start-up, "
         "final checkpoint. Load: the machine's 1-minute load average before and after "
         "(other jobs share these cores: compare rows with similar load).", "",
         "| collector | frames/s | min-max | ratio to single process | set-up (s) | load |",
@@ -140,9 +136,4 @@ def write_results(result: dict) -> None:
                      f"{row['frames_per_s_min']:.0f}-{row['frames_per_s_max']:.0f} | "
                      f"{row['ratio_to_single_process']:.2f} | {row['setup_s']:.1f} | "
                      f"{row['load_before']:.1f}-{row['load_after']:.1f} |")
-    (RESULTS / "bench_collect.md").write_text("\n".join(lines) + "\n")
-    print(f"wrote {RESULTS / 'bench_collect'}.json and .md")
-
-
-if __name__ == "__main__":
-    main()
+    return "\n".join(lines) + "\n"

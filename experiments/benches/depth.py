@@ -4,50 +4,44 @@ one run.
 For each robot, trail map (RandomMix: the default map, 576 height-field chunks; Forest: the
 map with the most obstacles) and N in {64, 256}:
   * physics: ``mujoco.rollout`` of the same model, N, substeps and threads, holding the
-    default pose (the ceiling of experiments/bench_env.py), seconds per env per policy step;
+    default pose (the ceiling of `bench.py env`), seconds per env per policy step;
   * depth: one 32 x 24 frame for all N cameras by each backend (``env.depth.backend``:
     ``raymarch``, ``multiray``), seconds per env per frame, and depth at 10 Hz (a frame every
     5 policy steps) over the physics step: the ratio the backends are judged by;
   * parity on the same cameras: median |raymarch - multiray| and the share within 5 cm, over
     the pixels where either sees a surface;
   * with ``--env`` (RandomMix rows): HikingEnv steps/s with depth on, per backend, against
-    the ceiling (experiments/bench_env.py's measurement);
+    the ceiling (`bench.py env`'s measurement);
   * with ``--tradeoff``: the march's settings (step, bisections, block) against speed and
     accuracy, on a map of every category (2 levels, 1 variant; the parity test's map).
 
 Cameras: robots in the default pose standing along the expert paths of every tile (all
 levels), facing along them, N of them spread over the map.
 
-    python experiments/bench_depth.py [--quick] [--env] [--tradeoff] [--robots h1 g1]
-                                      [--results DIR]
+    python experiments/bench.py depth [--quick] [--env] [--tradeoff] [--robots h1 g1]
 
-Writes experiments/results/bench_depth.{json,md}. Absolute numbers depend on the machine and
+Adds a run to experiments/results/bench_depth.{json,md}. Absolute numbers depend on the machine and
 on what else runs on it; the ratios measured in the same run are the figures to read.
 """
 
 from __future__ import annotations
 
 import argparse
-import functools
-import json
 import os
-import platform
 import time
-from pathlib import Path
 
-import mujoco
 import numpy as np
 import torch
-from bench_env import LEVEL, ceiling_rate, env_rate
 from omegaconf import OmegaConf
 
+from benches.env import LEVEL, ceiling_rate, env_rate
 from legoh.config.compose import compose_config
 from legoh.envs.hiking_env import HikingEnv
 from legoh.envs.sensors import camera_poses
 
-print = functools.partial(print, flush=True)  # noqa: A001 - progress shows as it happens
-ROOT = Path(__file__).resolve().parents[1]
-RESULTS = ROOT / "experiments" / "results"
+RESULTS = "bench_depth"
+TITLE = "Depth on the CPU: ray-march vs mj_multiRay vs the physics step"
+TORCH_THREADS = 1  # as training runs (algo.torch_threads: 1)
 BACKENDS = ("raymarch", "multiray")
 # (name, env.depth.backend): raymarch on the physics threads (the env's), on one, multiray
 CAMERAS = [("raymarch", "raymarch"), ("raymarch_1thread", "raymarch"), ("multiray", "multiray")]
@@ -127,7 +121,7 @@ def row(robot: str, trail: str, n: int, args: argparse.Namespace) -> dict:
         out[f"{name}_10hz_over_physics"] = cost / d.every / physics_s
     out.update(parity(images["raymarch"], images["multiray"], d.far))
     out["multiray_over_raymarch"] = out["multiray_s_per_frame"] / out["raymarch_s_per_frame"]
-    if args.env and trail == "randommix":  # bench_env's map and level
+    if args.env and trail == "randommix":  # the env benchmark's map and level
         out["ceiling_steps_per_s"] = 1.0 / physics_s
         for backend in BACKENDS:
             rate, denv = env_rate(robot, n, True, args.physics_steps, scene=env.scene,
@@ -196,8 +190,7 @@ def load() -> dict:
     return {"loadavg_1min": os.getloadavg()[0]}
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quick", action="store_true", help="N=64, H1, RandomMix only")
     parser.add_argument("--env", action="store_true", help="also HikingEnv rates with depth")
     parser.add_argument("--tradeoff", action="store_true",
@@ -208,35 +201,36 @@ def main() -> None:
     parser.add_argument("--reps", type=int, default=3, help="timed frames per round")
     parser.add_argument("--rounds", type=int, default=3, help="interleaved timing rounds")
     parser.add_argument("--physics-steps", type=int, default=20, help="per round")
-    parser.add_argument("--torch-threads", type=int, default=1,
-                        help="torch threads (training's algo.torch_threads: 1)")
-    parser.add_argument("--results", type=Path, default=RESULTS)
-    parser.add_argument("--note", default="", help="what else ran on the machine")
-    args = parser.parse_args()
+
+
+def kind(args: argparse.Namespace) -> str:
+    return "quick" if args.quick else ""
+
+
+def measure(args: argparse.Namespace) -> dict:
+    """The rows (robot x trail x N) and, with ``--tradeoff``, the march's settings."""
     if args.quick:
         args.robots, args.trails, args.sizes = ["h1"], ["randommix"], [64]
-    torch.set_num_threads(args.torch_threads)
     before = load()
     rows = [row(r, t, n, args) for r in args.robots for t in args.trails for n in args.sizes]
     settings = [x for r in args.robots for x in tradeoff(r, args)] if args.tradeoff else []
-    result = {"machine": {"cpus": os.cpu_count(), "platform": platform.platform(),
-                          "mujoco": mujoco.__version__, "torch": torch.__version__},
-              "load_before": before, "load_after": load(), "note": args.note, "rows": rows,
-              "tradeoff": settings}
-    write_results(result, args)
+    return {"load_before": before, "load_after": load(), "rows": rows, "tradeoff": settings}
 
 
-def write_results(result: dict, args: argparse.Namespace) -> None:
-    args.results.mkdir(parents=True, exist_ok=True)
-    stem = "bench_depth_quick" if args.quick else "bench_depth"
-    (args.results / f"{stem}.json").write_text(json.dumps(result, indent=2))
-    m = result["machine"]
+def summary(run: dict) -> str:
+    return "raymarch@10Hz / physics: " + ", ".join(
+        f"{r['robot']} {r['trail']} N={r['num_envs']} {r['raymarch_10hz_over_physics']:.2f}"
+        for r in run["results"]["rows"])
+
+
+def markdown(run: dict) -> str:
+    result = run["results"]
+    threads = run["conditions"].get("torch_threads", 1)
     lines = [
-        "# Depth on the CPU: ray-march vs mj_multiRay vs the physics step", "",
-        f"{m['cpus']} CPUs, MuJoCo {m['mujoco']}, torch {m['torch']} (one torch thread, as "
-        "training runs). One 32 x 24 frame for all N cameras (robots standing along the "
-        "expert paths of every tile, all levels); physics: `mujoco.rollout` of the same "
-        "model, N, 4 substeps and threads (microseconds per env per policy step). Cameras "
+        f"Torch on {threads} thread(s) (training runs one). One 32 x 24 frame for all N "
+        "cameras (robots standing along the expert paths of every tile, all levels); "
+        "physics: `mujoco.rollout` of the same model, N, 4 substeps and threads "
+        "(microseconds per env per policy step). Cameras "
         "(microseconds per env per frame): raymarch on the physics threads (the env's), on "
         "one thread, and multiray (`mj_multiRay` on the physics threads). Depth at 10 Hz / "
         "physics = (frame cost / 5) / physics step; timings are medians of interleaved "
@@ -244,7 +238,7 @@ def write_results(result: dict, args: argparse.Namespace) -> None:
         "either sees a surface. 1-minute load average before / after: "
         f"{result['load_before']['loadavg_1min']:.2f} / "
         f"{result['load_after']['loadavg_1min']:.2f} (other work on the same cores shows "
-        f"there: compare within a row). {result['note']}", "",
+        "there: compare within a row).", "",
         "| robot | trail | N | physics us/step | raymarch us/frame | raymarch, 1 thread | "
         "multiray us/frame | raymarch@10Hz / physics | 1 thread | multiray@10Hz / physics | "
         "multiray / raymarch | median err mm | within 5 cm |",
@@ -281,9 +275,4 @@ def write_results(result: dict, args: argparse.Namespace) -> None:
             lines.append(f"| {r['robot']} | {r['setting']} | {r['s_per_frame'] * 1e6:.0f} | "
                          f"{r['median_err_m'] * 1e3:.4f} | {r['within_1cm']:.2%} | "
                          f"{r['within_5cm']:.2%} |")
-    (args.results / f"{stem}.md").write_text("\n".join(lines) + "\n")
-    print(f"wrote {args.results / stem}.json and .md")
-
-
-if __name__ == "__main__":
-    main()
+    return "\n".join(lines) + "\n"

@@ -10,31 +10,26 @@ counted):
   * for the small preset, a 64-env forward + backward on 1 thread (the training shape; 1
     thread because 2 threads on 2 shared cores suffer badly from oversubscription).
 
-    python experiments/model_size.py [--quick]
+    python experiments/bench.py model-size [--quick]
 
-Writes experiments/results/model_size.{json,md}. Latencies depend on the machine (and on
+Adds a run to experiments/results/model_size.{json,md}. Latencies depend on the machine (and on
 whatever else runs on it); compare the rows of one run with each other.
 """
 
 from __future__ import annotations
 
 import argparse
-import functools
-import json
-import os
-import platform
 import statistics
 import time
-from pathlib import Path
 
 import torch
 from torch.utils.flop_counter import FlopCounterMode
 
 from legoh.modules.tcvit import TCViTs, tcvit_config
 
-print = functools.partial(print, flush=True)  # noqa: A001 - progress shows as it happens
-
-RESULTS = Path(__file__).parent / "results"
+RESULTS = "model_size"
+TITLE = "TC-ViTs size"
+TORCH_THREADS = 1  # latencies on 1 thread (measure sets it too)
 PROPRIO = {"h1": 39, "g1": 45}  # the env's observation spec ("obs", "proprio")
 PAPER = {"gru": {"params": 31.25e6, "flops": 0.686e9},  # appendix 3.1 / Table 1
          "transformer": {"params": 55.92e6, "flops": 0.785e9}}
@@ -71,7 +66,7 @@ def median_ms(fn, repeats: int) -> float:
     return statistics.median(times)
 
 
-def measure(preset: str, core: str, repeats: int) -> dict:
+def measure_one(preset: str, core: str, repeats: int) -> dict:
     torch.manual_seed(0)
     cfg = tcvit_config(preset, core)
     net = TCViTs(cfg, PROPRIO["h1"]).eval()
@@ -111,10 +106,10 @@ def measure(preset: str, core: str, repeats: int) -> dict:
     return row
 
 
-def markdown(rows: list[dict], meta: dict) -> str:
+def markdown(run: dict) -> str:
+    rows, repeats = run["results"]["rows"], run["results"]["repeats"]
     lines = [
-        "# TC-ViTs size (experiments/model_size.py)", "",
-        f"{meta['machine']}; torch {meta['torch']}; latency: median of {meta['repeats']} "
+        f"Latency: median of {repeats} "
         "one-robot forwards on 1 CPU thread, no grad. FLOPs: torch's FlopCounterMode "
         "(multiply-add = 2 FLOPs) for one robot; MACs = FLOPs / 2. Paper: appendix 3.1. "
         "Proprioception: H1 (39); G1 (45) in its own column.", "",
@@ -155,28 +150,28 @@ def markdown(rows: list[dict], meta: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quick", action="store_true", help="few repeats (a smoke run)")
-    args = parser.parse_args()
+
+
+def kind(args: argparse.Namespace) -> str:
+    return "quick" if args.quick else ""
+
+
+def measure(args: argparse.Namespace) -> dict:
+    """Every preset x core."""
     repeats = 5 if args.quick else 50
     rows = []
     for preset in PRESETS:
         for core in CORES:
-            rows.append(measure(preset, core, repeats))
+            rows.append(measure_one(preset, core, repeats))
             r = rows[-1]
             print(f"{preset:5s} {core:11s} {r['params'] / 1e6:8.3f} M params  "
                   f"{r['flops_torch'] / 1e9:6.3f} GFLOPs (torch)  {r['macs'] / 1e9:6.3f} GMACs  "
                   f"{r['latency_ms_1thread']:7.2f} ms")
-    meta = {"machine": f"{platform.processor() or platform.machine()}, "
-                       f"{os.cpu_count()} CPU cores (shared with other jobs)",
-            "torch": torch.__version__, "repeats": repeats}
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "model_size.json").write_text(json.dumps({"meta": meta, "rows": rows}, indent=2))
-    md = markdown(rows, meta)
-    (RESULTS / "model_size.md").write_text(md)
-    print(md)
+    return {"repeats": repeats, "rows": rows}
 
 
-if __name__ == "__main__":
-    main()
+def summary(run: dict) -> str:
+    return "latency (ms, 1 thread): " + ", ".join(
+        f"{r['preset']} {r['core']} {r['latency_ms_1thread']:.2f}" for r in run["results"]["rows"])

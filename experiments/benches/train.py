@@ -1,7 +1,7 @@
 """Where the oracle loop's time goes: bare env, collection, update and loop frames/s.
 
-    python experiments/bench_train.py [--sizes 64 256 512 1024] [--iterations 3]
-    python experiments/bench_train.py --sizes 64 256 --no-variants \
+    python experiments/bench.py train [--sizes 64 256 512 1024] [--iterations 3]
+    python experiments/bench.py train --sizes 64 256 --no-variants \
         --set env.compile=true --tag compiled
 
 Per batch size N, in one run (these machines are noisy, so compare within a run):
@@ -21,36 +21,34 @@ Per batch size N, in one run (these machines are noisy, so compare within a run)
                          worker process while the learner updates (the oracle's default
                          since 2026-12-03 evening; "lean" before 2026-12-03).
 Then update variants at the largest N (epochs x minibatches, precision): what a cheaper
-update would buy. Writes experiments/results/bench_train.{md,json}.
+update would buy. Adds a run to experiments/results/bench_train.{md,json}.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import os
 import tempfile
 import time
 from pathlib import Path
 
-os.environ.setdefault("MUJOCO_GL", "egl")
+import numpy as np
+import torch
+from omegaconf import OmegaConf
+from torchrl.collectors import Collector
 
-import numpy as np  # noqa: E402
-import torch  # noqa: E402
-from omegaconf import OmegaConf  # noqa: E402
-from torchrl.collectors import Collector  # noqa: E402
+from legoh.config.compose import compose_config
+from legoh.envs.hiking_env import make_env
+from legoh.eval.curves import read_columns
+from legoh.train.oracle import OraclePPO, train_oracle
 
-from legoh.config.compose import compose_config  # noqa: E402
-from legoh.envs.hiking_env import make_env  # noqa: E402
-from legoh.eval.curves import read_columns  # noqa: E402
-from legoh.train.oracle import OraclePPO, train_oracle  # noqa: E402
-
-ROOT = Path(__file__).resolve().parents[1]
+RESULTS = "bench_train"
+TITLE = "Oracle training loop vs its env (frames/s, one run)"
+TORCH_THREADS = 1
 BF16, F32 = "algo.update_precision=bfloat16", "algo.update_precision=float32"
 CRITIC256, CRITIC512 = "algo.critic_hidden=[256,128,64]", "algo.critic_hidden=[512,256,128]"
 EPOCHS3, EPOCHS5 = "algo.epochs=3", "algo.epochs=5"
 LOOPS = {"turns": ["collector.overlap=false"], "overlap": ["collector.overlap=true"]}
-OUT = ROOT / "experiments" / "results"
 
 
 OVERRIDES: list[str] = []  # --set: applied to every config of the run
@@ -108,18 +106,17 @@ def loop_rate(cfg, iterations: int) -> float:
     return float(np.mean(fps[1:]))
 
 
-def main() -> None:  # noqa: PLR0915 - one measurement table after another
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sizes", type=int, nargs="+", default=[64, 256, 512, 1024])
     parser.add_argument("--iterations", type=int, default=3)
-    parser.add_argument("--note", default="", help="a line on the conditions of this run")
-    parser.add_argument("--tag", default="", help="results as bench_train_<tag>.{md,json}")
     parser.add_argument("--no-variants", action="store_true", help="skip the update variants")
     parser.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
                         help="overrides for every env and loop, e.g. env.compile=true")
-    args = parser.parse_args()
+
+
+def measure(args: argparse.Namespace) -> dict:
+    """Per N: bare env, collection, update and both loops; then the update variants."""
     OVERRIDES[:] = args.set
-    torch.set_num_threads(1)
     rows = []
     for n in args.sizes:
         cfg = config(n)
@@ -155,14 +152,21 @@ def main() -> None:  # noqa: PLR0915 - one measurement table after another
         var_rows.append({"variant": name, "collection": col, "update": upd,
                          "loop_estimate": 1 / (1 / col + 1 / upd)})
         print(json.dumps(var_rows[-1]), flush=True)
+    return {"sizes": rows, "update_variants_at_N": n, "variants": var_rows}
 
-    stem = f"bench_train_{args.tag}" if args.tag else "bench_train"
-    (OUT / f"{stem}.json").write_text(json.dumps(
-        {"sizes": rows, "update_variants_at_N": n, "variants": var_rows,
-         "torch_threads": 1, "cpus": os.cpu_count(), "note": args.note, "set": args.set}, indent=2))
-    lines = ["# Oracle training loop vs its env (frames/s, one run, 1 torch thread, "
-             f"{os.cpu_count()} CPUs)", "", *([args.note, ""] if args.note else []),
-             *([f"Every env and loop with `{' '.join(args.set)}`.", ""] if args.set else []),
+
+def summary(run: dict) -> str:
+    """The loops' frames/s per N (older runs named their loops otherwise)."""
+    return "; ".join(f"N={r['N']} " + ", ".join(f"{k[5:]} {v:.0f}" for k, v in r.items()
+                                                 if k.startswith("loop_"))
+                     for r in run["results"]["sizes"]) + " loop frames/s"
+
+
+def markdown(run: dict) -> str:
+    result, overrides = run["results"], run["conditions"].get("set", [])
+    rows, var_rows, n = result["sizes"], result["variants"], result["update_variants_at_N"]
+    lines = [f"{run['conditions'].get('torch_threads', 1)} torch thread(s).", "",
+             *([f"Every env and loop with `{' '.join(overrides)}`.", ""] if overrides else []),
              "Loops of the default config (the lean update): turns = "
              f"`{' '.join(LOOPS['turns'])}` (collection and update in turns, one process), "
              f"overlap = `{' '.join(LOOPS['overlap'])}` (the oracle's default: the next batch "
@@ -181,9 +185,4 @@ def main() -> None:  # noqa: PLR0915 - one measurement table after another
                   "| variant | collection | update | loop estimate |", "|---|---|---|---|"]
     lines += [f"| {r['variant']} | {r['collection']:.0f} | {r['update']:.0f} | "
               f"{r['loop_estimate']:.0f} |" for r in var_rows]
-    (OUT / f"{stem}.md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
-
-
-if __name__ == "__main__":
-    main()
+    return "\n".join(lines) + "\n"

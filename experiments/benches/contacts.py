@@ -6,47 +6,41 @@ what checkpoints before 2026-12-05 trained on; ``spheres``; ``box``), in one run
     actions); sampled states are replayed one MjData at a time: contacts per foot on the
     ground (mean over feet touching it), and MuJoCo's own timers (``mjData.timer``) over the
     4 substeps from each state: microseconds a substep and the narrow-phase share;
-  * env: HikingEnv policy steps/s at N in ``--sizes`` with random actions (bench_env's
-    method) and the share of its step spent in its own physics, eager for each feet and
-    with the default ``env.compile`` (null: compiled from 64 robots up) on the default feet;
+  * env: HikingEnv policy steps/s at N in ``--sizes`` with random actions (the env
+    benchmark's method) and the share of its step spent in its own physics, eager for each
+    feet and with the default ``env.compile`` (null: compiled from 64 robots up) on the
+    default feet;
   * loop: the oracle training loop's frames/s (the default config: warm-started from the
     shipped oracle, RandomMix, overlapped collection) at N in ``--sizes``: the old default
     (``source`` feet, eager), ``spheres`` eager, and the new default.
 Rows run interleaved per size so that drift of the machine hits each alike; the ratios to
 the old default in the same run are the figures to read (``loop_speedup``: N = 256).
 
-    python experiments/bench_contacts.py [--robots h1 g1] [--sizes 64 256] [--iterations 4]
+    python experiments/bench.py contacts [--robots h1 g1] [--sizes 64 256] [--iterations 4]
 
-Writes experiments/results/bench_contacts.{md,json}.
+Adds a run to experiments/results/bench_contacts.{md,json}.
 """
 
 from __future__ import annotations
 
 import argparse
-import datetime
-import json
-import os
-import platform
-import sys
 import time
-from pathlib import Path
 
-os.environ.setdefault("MUJOCO_GL", "egl")
-sys.path.insert(0, str(Path(__file__).resolve().parent))  # the sibling bench scripts
+import mujoco
+import numpy as np
+import torch
+from torchrl.envs.utils import ExplorationType, set_exploration_type
 
-import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
-import torch  # noqa: E402
-from bench_env import LEVEL, compose_cfg, env_rate  # noqa: E402
-from bench_train import loop_rate  # noqa: E402
-from torchrl.envs.utils import ExplorationType, set_exploration_type  # noqa: E402
+from benches.env import LEVEL, compose_cfg, env_rate
+from benches.train import loop_rate
+from legoh.config.compose import compose_config
+from legoh.envs.hiking_env import make_env
+from legoh.policies.oracle import load_oracle_actor
 
-from legoh.config.compose import compose_config  # noqa: E402
-from legoh.envs.hiking_env import make_env  # noqa: E402
-from legoh.policies.oracle import load_oracle_actor  # noqa: E402
-
+RESULTS = "bench_contacts"
+TITLE = "Feet colliders: contacts, narrow phase, env and oracle-loop speed (one run)"
+TORCH_THREADS = 1
 FEET = ("source", "spheres", "box")
-OUT = Path(__file__).resolve().parents[1] / "experiments" / "results"
 T = mujoco.mjtTimer
 
 
@@ -121,13 +115,17 @@ ROWS = [("source, eager (old default)", "source", "false"),
 LOOPS = ("source, eager (old default)", "spheres, eager", "spheres, compile=null (new default)")
 
 
-def to_markdown(result: dict) -> str:
+def summary(run: dict) -> str:
+    speedup = run["results"]["loop_speedup"]
+    return "loop speed-up at N = 256: " + ", ".join(f"{r} {v:.2f}" for r, v in speedup.items())
+
+
+def markdown(run: dict) -> str:
+    result = run["results"]
     lines = [
-        "# Feet colliders: contacts, narrow phase, env and oracle-loop speed (one run)", "",
-        f"{result['date']}, {result['machine']}. {result['note']}".strip(), "",
         "Contacts: the shipped oracle hiking RandomMix level 2 (N = 64), sampled states "
         "replayed one MjData at a time (MuJoCo's timers). Env: HikingEnv with random "
-        "actions (bench_env's method), physics share = its own `mujoco.rollout` time over "
+        "actions (the env benchmark's method), physics share = its own `mujoco.rollout` time over "
         "its step. Loop: the oracle's training loop, default config (warm start, RandomMix, "
         "overlapped collection), frames/s of its iterations after the first. Ratios are to "
         "the old default (`source` feet: the MJCF's colliders; eager env) in the same run. "
@@ -153,22 +151,18 @@ def to_markdown(result: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robots", nargs="+", default=["h1", "g1"])
     parser.add_argument("--feet", nargs="+", default=list(FEET))
     parser.add_argument("--sizes", type=int, nargs="+", default=[64, 256])
     parser.add_argument("--steps", type=int, default=100, help="env steps timed per row")
     parser.add_argument("--iterations", type=int, default=4, help="loop iterations per row")
-    parser.add_argument("--note", default="", help="a line on the conditions of this run")
-    parser.add_argument("--results", type=Path, default=OUT)
-    args = parser.parse_args()
-    torch.set_num_threads(1)
+
+
+def measure(args: argparse.Namespace) -> dict:
+    """Contacts per robot and feet, then the speed rows interleaved per size."""
     default = compose_config().robot.feet_collider
-    result = {"date": datetime.date.today().isoformat(),
-              "machine": f"{os.cpu_count()} CPUs, {platform.processor() or platform.machine()}, "
-                         f"MuJoCo {mujoco.__version__}",
-              "note": args.note, "default_feet": str(default), "contacts": {}, "speed": []}
+    result = {"default_feet": str(default), "contacts": {}, "speed": []}
     for robot in args.robots:
         result["contacts"][robot] = {}
         for feet in args.feet:
@@ -199,12 +193,4 @@ def main() -> None:
             result["speed"] += rows
     result["loop_speedup"] = {r["robot"]: r["loop_ratio"] for r in result["speed"]
                               if r["n"] == 256 and r["row"] == ROWS[-1][0]}
-    args.results.mkdir(parents=True, exist_ok=True)
-    (args.results / "bench_contacts.json").write_text(json.dumps(result, indent=2) + "\n")
-    markdown = to_markdown(result)
-    (args.results / "bench_contacts.md").write_text(markdown)
-    print(markdown)
-
-
-if __name__ == "__main__":
-    main()
+    return result

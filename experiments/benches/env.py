@@ -8,7 +8,7 @@ For H1 and G1 on RandomMix level 2 and N in {16, 64, 256}:
   * HikingEnv with ``env.compile=true``, random actions and holding the default pose (the
     ceiling's own motion);
   * depth cost: the env's camera (``env.depth.backend``; the ``raycast`` keys are its cost,
-    experiments/bench_depth.py compares the backends) vs MuJoCo's EGL renderer, per frame;
+    `bench.py depth` compares the backends) vs MuJoCo's EGL renderer, per frame;
   * peers: gymnasium's Humanoid-v5 and torchrl's ``HumanoidEnv`` (MuJoCo C backend), one env.
 
 With ``--backend warp`` (or ``both``: the CPU rows above, then these, in one run), MuJoCo
@@ -19,40 +19,32 @@ Warp on ``--device`` for N in ``--sizes`` (default 1024, 4096, 8192 on a GPU):
   * HikingEnv on the Warp backend, without and with depth, where the env supports it
     (``sim=warp``; n/a before the backend factory ``legoh.envs.physics`` exists).
 
-    python experiments/bench_env.py [--quick] [--backend mujoco|warp|both] [--device cuda]
-                                    [--sizes 1024 4096 8192] [--results DIR]
+    python experiments/bench.py env [--quick] [--backend mujoco|warp|both] [--device cuda]
+                                    [--sizes 1024 4096 8192]
 
-Writes experiments/results/bench_env.{json,md} (CPU) and bench_env_warp_<device>.{json,md}.
+Adds a run to experiments/results/bench_env.{json,md} (a Warp-only run is of kind
+"warp <device>", a ``--quick`` one of kind "quick": each keeps its own newest table).
 Absolute numbers depend on the machine; the ratios in the same run are the figures to read.
 """
 
 from __future__ import annotations
 
 import argparse
-import functools
-import json
-import os
-import platform
 import time
-from pathlib import Path
 
-os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco is imported: headless rendering
-# MuJoCo Warp's compiled kernels (--backend warp): the tests' cache, before warp starts
-os.environ.setdefault("WARP_CACHE_PATH", str(Path(__file__).resolve().parents[1] / ".warp_cache"))
+import mujoco
+import numpy as np
+import torch
+from mujoco import rollout
+from omegaconf import OmegaConf
 
-import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
-import torch  # noqa: E402
-from mujoco import rollout  # noqa: E402
-from omegaconf import OmegaConf  # noqa: E402
+from legoh.config.compose import compose_config
+from legoh.envs.hiking_env import make_env
+from legoh.envs.robots import CAMERA_NAME
 
-from legoh.config.compose import compose_config  # noqa: E402
-from legoh.envs.hiking_env import make_env  # noqa: E402
-from legoh.envs.robots import CAMERA_NAME  # noqa: E402
-
-print = functools.partial(print, flush=True)  # noqa: A001 - progress shows as it happens
-ROOT = Path(__file__).resolve().parents[1]
-RESULTS = ROOT / "experiments" / "results"
+RESULTS = "bench_env"
+TITLE = "HikingEnv speed (policy steps/s, 50 Hz policy, 4 substeps)"
+TORCH_THREADS = None  # torch's default
 LEVEL = 2
 
 
@@ -218,8 +210,7 @@ def torchrl_humanoid_rate(steps: int) -> float | None:
 
 def warp_rows(args: argparse.Namespace) -> list[dict]:
     """MuJoCo Warp: physics ceiling, depth cost and (where supported) HikingEnv rates."""
-    from bench_warp_chunks import warp_physics
-
+    from benches.warp_chunks import warp_physics
     from legoh.envs.scene import build_scene
     from legoh.envs.terrain import build_terrain_map
 
@@ -257,37 +248,29 @@ def warp_rows(args: argparse.Namespace) -> list[dict]:
     return rows
 
 
-def write_warp_results(rows: list[dict], args: argparse.Namespace) -> None:
-    args.results.mkdir(parents=True, exist_ok=True)
-    stem = f"bench_env_warp_{args.device.replace(':', '')}"
-    machine = {"cpus": os.cpu_count(), "platform": platform.platform(),
-               "mujoco": mujoco.__version__, "torch": torch.__version__}
-    if args.device.startswith("cuda"):
-        machine["gpu"] = torch.cuda.get_device_name()
-    (args.results / f"{stem}.json").write_text(json.dumps({"machine": machine, "rows": rows},
-                                                          indent=2))
+def _fmt(x: float | None) -> str:
+    return "n/a" if x is None else f"{x:.0f}"
 
-    def fmt(x: float | None) -> str:
-        return "n/a" if x is None else f"{x:.0f}"
 
-    lines = ["# MuJoCo Warp speed (policy steps/s, 50 Hz policy, 4 substeps)", "",
-             f"Device `{args.device}` ({machine.get('gpu', 'CPU')}), RandomMix level map, "
-             "default pose. Ceiling: `WarpSim.step` alone; depth: one 32x24 ray-cast frame "
-             "per world every 5 policy steps; env: HikingEnv with `sim=warp` (the same "
-             "term tables as the CPU rows, in the same run with `--backend both`).", "",
+def warp_markdown(result: dict) -> list[str]:
+    """The Warp rows' table (``result["warp_rows"]``)."""
+    rows = result["warp_rows"]
+    lines = ["MuJoCo Warp speed (policy steps/s, 50 Hz policy, 4 substeps), device "
+             f"`{result['warp_device']}`, RandomMix level map, default pose. Ceiling: "
+             "`WarpSim.step` alone; depth: one 32x24 ray-cast frame per world every 5 policy "
+             "steps; env: HikingEnv with `sim=warp` (the same term tables as the CPU rows, in "
+             "the same run with `--backend both`).", "",
              "| robot | N | chunk m | ceiling | ceiling + depth | env | env + depth | "
              "depth ms/frame (all N) | overflow worlds |", "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         lines.append(f"| {r['robot']} | {r['num_envs']} | {r['chunk_m']:g} | "
                      f"{r['ceiling_steps_per_s']:.0f} | {r['ceiling_depth_10hz_steps_per_s']:.0f}"
-                     f" | {fmt(r['env_steps_per_s'])} | {fmt(r['env_depth_steps_per_s'])} | "
+                     f" | {_fmt(r['env_steps_per_s'])} | {_fmt(r['env_depth_steps_per_s'])} | "
                      f"{r['depth_s_per_frame'] * 1e3:.1f} | {r['overflow_worlds']} |")
-    (args.results / f"{stem}.md").write_text("\n".join(lines) + "\n")
-    print(f"wrote {args.results / stem}.json and .md")
+    return lines
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quick", action="store_true", help="N=16 only, fewer steps")
     parser.add_argument("--backend", choices=["mujoco", "warp", "both"], default="mujoco")
     parser.add_argument("--device", default="cuda" if torch.cuda.is_available() else "cpu",
@@ -296,18 +279,28 @@ def main() -> None:
                         help="Warp world counts (default 1024 4096 8192; 8 on the CPU)")
     parser.add_argument("--robots", nargs="+", default=["h1"], help="Warp rows' robots")
     parser.add_argument("--warp-steps", type=int, default=50, help="timed Warp policy steps")
-    parser.add_argument("--results", type=Path, default=RESULTS)
-    args = parser.parse_args()
+
+
+def kind(args: argparse.Namespace) -> str:
+    if args.backend == "warp":
+        return f"warp {args.device}"
+    return "quick" if args.quick else ""
+
+
+def measure(args: argparse.Namespace) -> dict:
+    """The CPU rows (``--backend mujoco``), the Warp rows (``warp``) or both."""
     if args.sizes is None:
         args.sizes = [1024, 4096, 8192] if args.device.startswith("cuda") else [8]
+    result = {}
     if args.backend in ("mujoco", "both"):
-        cpu_benchmark(args)
+        result.update(cpu_benchmark(args))
     if args.backend in ("warp", "both"):
-        write_warp_results(warp_rows(args), args)
+        result.update(warp_rows=warp_rows(args), warp_device=args.device)
+    return result
 
 
-def cpu_benchmark(args: argparse.Namespace) -> None:
-    """The CPU rows, the depth costs and the peers (bench_env.{json,md})."""
+def cpu_benchmark(args: argparse.Namespace) -> dict:
+    """The CPU rows, the depth costs and the peers."""
     sizes = [16] if args.quick else [16, 64, 256]
     rows = []
     for robot in ["h1", "g1"]:
@@ -367,21 +360,33 @@ def cpu_benchmark(args: argparse.Namespace) -> None:
     peers = {"gymnasium_humanoid_v5_steps_per_s": gymnasium_rate(peer_steps),
              "torchrl_humanoid_c_steps_per_s": torchrl_humanoid_rate(peer_steps)}
     print(peers)
-    result = {"machine": {"cpus": os.cpu_count(), "platform": platform.platform(),
-                          "mujoco": mujoco.__version__, "torch": torch.__version__},
-              "level": LEVEL, "trail": "randommix", "rows": rows, "peers": peers,
-              "depth_backend": compose_cfg("h1", True).env.depth.backend.value}
-    write_results(result, quick=args.quick, results=args.results)
+    return {"level": LEVEL, "trail": "randommix", "rows": rows, "peers": peers,
+            "depth_backend": compose_cfg("h1", True).env.depth.backend.value}
 
 
-def write_results(result: dict, quick: bool, results: Path = RESULTS) -> None:
-    results.mkdir(parents=True, exist_ok=True)
-    stem = "bench_env_quick" if quick else "bench_env"
-    (results / f"{stem}.json").write_text(json.dumps(result, indent=2))
+def summary(run: dict) -> str:
+    result = run["results"]
+    rows = [(r["robot"], r["num_envs"], r["env_steps_per_s"], r["env_over_ceiling"])
+            for r in result.get("rows", [])]
+    rows += [(r["robot"], r["num_envs"], r["env_steps_per_s"], None)
+             for r in result.get("warp_rows", [])]
+    return "env steps/s " + ", ".join(
+        f"{robot} N={n} {_fmt(rate)}" + (f" ({ratio:.0%} of the ceiling)" if ratio else "")
+        for robot, n, rate, ratio in rows)
+
+
+def markdown(run: dict) -> str:
+    result = run["results"]
+    lines = cpu_markdown(result) if "rows" in result else []
+    if "warp_rows" in result:
+        lines += ["", *warp_markdown(result)] if lines else warp_markdown(result)
+    return "\n".join(lines) + "\n"
+
+
+def cpu_markdown(result: dict) -> list[str]:
+    """The CPU rows' tables, the depth costs and the peers."""
     lines = [
-        "# HikingEnv speed (policy steps/s, 50 Hz policy, 4 substeps)", "",
-        f"RandomMix level {result['level']}, {result['machine']['cpus']} CPUs, "
-        f"MuJoCo {result['machine']['mujoco']}. Ceiling: `mujoco.rollout` of the same model, "
+        f"RandomMix level {result['level']}. Ceiling: `mujoco.rollout` of the same model, "
         "N, substeps and threads, from the env's spawn state holding the default pose. "
         "Env physics: the share of the env's step spent in its own `mujoco.rollout` call, "
         "on the motion it steps (random actions: robots thrash and fall, more contacts than "
@@ -430,18 +435,9 @@ def write_results(result: dict, quick: bool, results: Path = RESULTS) -> None:
                          f"{r['raycast_s_per_frame_64x48'] * 1e3:.2f} ms | "
                          f"{1e3 / r['ceiling_steps_per_s']:.3f} ms |")
     p = result["peers"]
-
-    def fmt(x: float | None) -> str:
-        return "n/a" if x is None else f"{x:.0f}"
-
     lines += ["", "Peers (one env, their own models and frame skips: gymnasium Humanoid-v5 "
               "steps 5 substeps of 3 ms, torchrl HumanoidEnv its own):", "",
-              f"* gymnasium Humanoid-v5: {fmt(p['gymnasium_humanoid_v5_steps_per_s'])} steps/s",
+              f"* gymnasium Humanoid-v5: {_fmt(p['gymnasium_humanoid_v5_steps_per_s'])} steps/s",
               f"* torchrl HumanoidEnv (MuJoCo C backend): "
-              f"{fmt(p['torchrl_humanoid_c_steps_per_s'])} steps/s", ""]
-    (results / f"{stem}.md").write_text("\n".join(lines))
-    print(f"wrote {results / stem}.json and .md")
-
-
-if __name__ == "__main__":
-    main()
+              f"{_fmt(p['torchrl_humanoid_c_steps_per_s'])} steps/s"]
+    return lines
