@@ -484,6 +484,44 @@ def test_curriculum_zero_expected_distance() -> None:
     np.testing.assert_array_equal(new, [0])
 
 
+def test_lagging_mix_sends_robots_to_the_category_that_lags() -> None:
+    """Category 3's robots sit at level 0, the others at the top: with mix 1 an ended
+    episode moves there with weight 5 against 1 each (5 / 9), and takes a level of its
+    new category's robots; with mix 0 every robot keeps its category and level."""
+    from legoh.envs.curriculum import lagging_categories
+
+    n = 900
+    category = torch.arange(n) % 5
+    levels = torch.where(category == 3, 0, 4)
+    ended = torch.arange(n)
+    cat, lev = lagging_categories(category, levels, ended, 5, 5, 1.0,
+                                  torch.Generator().manual_seed(0))
+    share = float((cat == 3).float().mean())
+    assert abs(share - 5 / 9) < 0.05, share
+    np.testing.assert_array_equal(lev[cat == 3], 0)
+    np.testing.assert_array_equal(lev[cat != 3], 4)
+    same_cat, same_lev = lagging_categories(category, levels, ended, 5, 5, 0.0,
+                                            torch.Generator().manual_seed(0))
+    assert torch.equal(same_cat, category) and torch.equal(same_lev, levels)
+
+
+def test_lagging_mix_moves_ended_episodes_only(make: EnvFactory) -> None:
+    """The curriculum event: robots whose episode ran move between categories, robots
+    reset before their first step (steps 0) keep theirs."""
+    from legoh.config.env import CurriculumConfig
+    from legoh.envs.mdp import events
+
+    cfg = compose_config("trail=hike", "trail.levels=2", "trail.variants=1")
+    env = make(60, cfg=cfg, scene=scene_of(cfg), curriculum=CurriculumConfig(lagging_mix=1.0))
+    env.reset()
+    before = env.category.clone()
+    env.steps[:30] = 10
+    env.steps[30:] = 0
+    events.curriculum(env, torch.arange(60))
+    assert torch.equal(env.category[30:], before[30:])
+    assert (env.category[:30] != before[:30]).any()
+
+
 def test_uniform_rule_draws_every_level_whatever_the_episode_did(make: EnvFactory) -> None:
     """``env.curriculum.rule=uniform`` (a student's): robots standing still at their spawn
     (covered 0: the distance rule keeps level 0) draw their next level over all levels."""

@@ -276,6 +276,10 @@ class CurriculumConfig:
     up: float = 0.8
     down: float = 0.4
     start_level: int = 0  # max initial level (uniform in 0..start_level)
+    # share of ended episodes whose next category is drawn with weight (levels - the
+    # category's mean level), so robots flow to the categories that lag (issue 44); 0: each
+    # robot keeps one category (robot index % categories, the shipped oracles' split)
+    lagging_mix: float = 0.5
 
 
 @dataclass

@@ -115,6 +115,7 @@ RANGES: list[tuple[str, Range]] = [
     ("env.randomization.ramp_steps", COUNT),
     ("env.randomization.push_interval_s", POSITIVE),  # 0 would push at every step
     ("env.randomization.*", NON_NEGATIVE),  # offsets, speeds, delays, step counts
+    ("env.curriculum.lagging_mix", FRACTION),
     ("env.curriculum.*", NON_NEGATIVE),
     ("env.spawn_noise", NON_NEGATIVE), ("env.spawn_remaining", NON_NEGATIVE_INTERVAL),
     ("env.spawn_along", FRACTION),

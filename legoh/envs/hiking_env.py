@@ -225,9 +225,10 @@ class HikingEnv(EnvBase):
 
     # ----------------------------------------------------------------- curriculum state
     def curriculum_state(self) -> dict:
-        """What a checkpoint keeps of the env's training schedule: terrain levels, the
-        vectorised step counter and the randomisation gate (plain values)."""
-        return {"level": self.level.tolist(), "global_steps": int(self.global_steps),
+        """What a checkpoint keeps of the env's training schedule: terrain levels and
+        categories, the vectorised step counter and the randomisation gate (plain values)."""
+        return {"level": self.level.tolist(), "category": self.category.tolist(),
+                "global_steps": int(self.global_steps),
                 "randomization": self.randomization.state()}
 
     def set_level(self, level: int | torch.Tensor) -> None:
@@ -246,6 +247,8 @@ class HikingEnv(EnvBase):
                              f"{len(state['level'])} (a run keeps its number of robots; "
                              "init=<checkpoint> starts a new run from its weights)")
         self.level[:] = torch.as_tensor(state["level"], device=self.device)
+        if "category" in state:  # older checkpoints: each robot kept its category
+            self.category[:] = torch.as_tensor(state["category"], device=self.device)
         self.global_steps = int(state["global_steps"])
         if "randomization" in state:
             self.randomization.load_state(state["randomization"])

@@ -11,7 +11,7 @@ from collections.abc import Callable
 import torch
 
 from legoh.config.env import LevelRule
-from legoh.envs.curriculum import update_levels
+from legoh.envs.curriculum import lagging_categories, update_levels
 from legoh.envs.math3d import wrap_angle
 from legoh.envs.mdp.spawns import (  # noqa: F401 (spawn_waypoint: re-exported for callers)
     SPAWN_LIFT,
@@ -109,7 +109,9 @@ def curriculum(env, ids: torch.Tensor) -> None:
     """Appendix 6.2.1: finished episodes move their env's level up or down. The expected
     distance is the episode's commanded speed times the episode length (capped at the
     trail's length), as the appendix says; an episode told to stand keeps its level. Under
-    ``rule=uniform`` every finished episode draws its next level uniformly instead."""
+    ``rule=uniform`` every finished episode draws its next level uniformly instead. With
+    ``curriculum.lagging_mix`` a share of finished episodes moves to a lagging category
+    (``curriculum.lagging_categories``)."""
     cur = env.cfg.curriculum
     if not cur.enabled:
         return
@@ -119,8 +121,18 @@ def curriculum(env, ids: torch.Tensor) -> None:
                                         device=env.device)
         return
     done = ids[(env.steps[ids] > 0) & (env.command.speed[ids] > 0)]
-    if len(done) == 0:
-        return
+    if len(done):
+        levels_from_distance(env, done, cur)
+    if cur.lagging_mix > 0 and env.num_categories > 1 and not env.evaluation:
+        ended = ids[env.steps[ids] > 0]
+        env.category[ended], env.level[ended] = lagging_categories(
+            env.category, env.level, ended, env.num_categories, env.terrain.levels,
+            cur.lagging_mix, env.gen)
+
+
+def levels_from_distance(env, done: torch.Tensor, cur) -> None:
+    """Appendix 6.2.1's rule for the ended episodes ``done``: up or down by the distance
+    covered from the spawn point against the commanded speed's."""
     t = env.trails_t
     tile = env.goals.tile[done]
     start = env.spawned_at[done]  # m of path behind the spawn point
