@@ -5,6 +5,7 @@ campaign of runs that each resume from the last one's committed checkpoint.
     python experiments/learn_hike.py --evaluate [--robot h1] [--seed 0]   # benchmark snapshots
     python experiments/learn_hike.py --plot [--robot h1] [--seed 0]
     python experiments/learn_hike.py --compare warm scratch [--robot h1] [--seed 0]
+    python experiments/learn_hike.py --arm ground --init PATH --minutes 13   # an A/B arm
 
 Training (``trail=hike``: RandomMix, Ditch, Hurdle, Gap and Forest in one map, each robot
 its own category and level under the curriculum; randomisation brought in by the gate) starts
@@ -80,6 +81,18 @@ LEAN = ["algo.update_precision=bfloat16", "collector.overlap=true",
 # paper's 0.8 no robot was promoted in 25 minutes).
 RECIPES = {"v1": ("hike", ["+experiment=recipe_v1"]), "v2": ("leap", [])}
 HIKE = RECIPES["v1"][1]  # the students' scripts train with their v1 teachers' recipe
+# Issue 44's A/B round (``--arm``): recipe v2 whole, and v2 without one of its changes at a
+# time (leave one out), each a short run from the same warm start; training only (the walk
+# test and the benchmark stay on v2's trails and protocol). Run folder: <robot>-s<seed>-ab3-<arm>
+ARMS = {
+    "v2": [],
+    "ground": ["env.height_reference=ground"],  # heights against the pit floors
+    "clock": ["env.gait.yield_near=0"],  # the gait clock everywhere
+    "hike": ["env.reward_preset=hike"],  # no clearance terms, no leap air time
+    "speed": ["env.command.speed=[0.3,1.0]"],  # commands to 1 m/s
+    "start": ["env.spawn_along=0"],  # every robot at the trail start
+    "mix": ["env.curriculum.lagging_mix=0"],  # each robot keeps its category
+}
 CATEGORIES = ("randommix", "ditch", "hurdle", "gap", "forest")
 D_SR, E_SR_MIX, E_SR_CAT = 50.0, 70.0, 50.0
 
@@ -87,7 +100,8 @@ D_SR, E_SR_MIX, E_SR_CAT = 50.0, 70.0, 50.0
 def run_dir(args) -> Path:
     if args.out:
         return Path(args.out)
-    return OUT / f"{args.robot}-s{args.seed}{'-' + args.tag if args.tag else ''}"
+    tag = args.tag or (f"ab3-{args.arm}" if args.arm else "")
+    return OUT / f"{args.robot}-s{args.seed}{'-' + tag if tag else ''}"
 
 
 def train_config(args) -> tuple[list[str], object]:
@@ -95,7 +109,7 @@ def train_config(args) -> tuple[list[str], object]:
     init = args.init if args.init != "walker" else str(WALKER.get(args.robot, "none"))
     preset, recipe = RECIPES[args.recipe]
     extra = [f"algo.total_frames={args.frames}", f"algo.num_envs={args.envs}", *LEAN, *recipe,
-             f"init={init}"]
+             *ARMS.get(args.arm, []), f"init={init}"]
     return extra, own_body(args, compose_run(args.robot, args.seed, preset, "hike",
                                              [*extra, *args.overrides]))
 
@@ -292,6 +306,9 @@ def make_parser() -> argparse.ArgumentParser:
                              "v1: the shipped oracles' (conf/experiment/recipe_v1.yaml)")
     parser.add_argument("--init", default="walker",
                         help="walker (the committed learn_walk walker) | none | PATH")
+    parser.add_argument("--arm", choices=list(ARMS), default=None,
+                        help="an A/B arm: recipe v2 without one change (ARMS); its run "
+                             "folder is <robot>-s<seed>-ab3-<arm> unless --tag is given")
     parser.add_argument("--compare", nargs="+", metavar="TAG",
                         help="draw these runs' walk tests side by side ('-': untagged)")
     return parser

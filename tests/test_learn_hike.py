@@ -87,3 +87,37 @@ def test_the_training_config_keeps_the_robots_reward_scales() -> None:
     g1, h1 = weights("g1"), weights("h1")
     assert g1["tracking_waypoint_vel"] == 2.0 and g1["tracking_lin_vel"] == 0.0
     assert h1["tracking_waypoint_vel"] == 1.0 and h1["tracking_lin_vel"] == 0.0
+
+
+def test_each_ab_arm_leaves_out_one_change_of_recipe_v2() -> None:
+    """``--arm``: every arm's training config differs from recipe v2's in its own keys
+    only, and gets its own run folder."""
+    sys.path.insert(0, str(ROOT / "experiments"))
+    from learn_hike import ARMS, make_parser, run_dir, train_config
+    from omegaconf import OmegaConf
+
+    def flat(args):
+        cfg = OmegaConf.to_container(train_config(args)[1], resolve=True)
+        out = {}
+
+        def walk(node, path=""):
+            for k, v in node.items():
+                if isinstance(v, dict):
+                    walk(v, f"{path}{k}.")
+                else:
+                    out[f"{path}{k}"] = v
+        walk(cfg)
+        return out
+
+    parse = make_parser().parse_args
+    base = flat(parse(["--init", "none", "--arm", "v2"]))  # (h1-s0 holds the v1 campaign)
+    expected = {"ground": {"env.height_reference"}, "clock": {"env.gait.yield_near"},
+                "hike": {"env.reward_preset"}, "speed": {"env.command.speed"},
+                "start": {"env.spawn_along"}, "mix": {"env.curriculum.lagging_mix"}, "v2": set()}
+    assert set(ARMS) == set(expected)
+    for arm, keys in expected.items():
+        args = parse(["--init", "none", "--arm", arm])
+        arm_cfg = flat(args)
+        changed = {k for k in base if arm_cfg.get(k) != base[k]}
+        assert changed == keys, (arm, changed)
+        assert run_dir(args).name == f"h1-s0-ab3-{arm}"
