@@ -148,7 +148,26 @@ def markdown(run: dict) -> str:
                      f"{row['outside_ms']:.1f} | {row['first_step_s']:.1f} | {loop} |")
     lines += ["", "loop_speedup (N = 256, new default over old): "
               + ", ".join(f"{r} {v:.2f}" for r, v in result["loop_speedup"].items())]
+    lines += ["", *ceiling_lines(result["speed"])]
     return "\n".join(lines) + "\n"
+
+
+def ceiling_lines(speed: list[dict]) -> list[str]:
+    """What the loop could reach at N = 256: a loop runs no faster than its bare env, so
+    the new bare env over the old loop bounds ``loop_speedup`` (reached only with an
+    update that costs the collector nothing); and each loop's share of its bare env."""
+    lines = []
+    for robot in dict.fromkeys(r["robot"] for r in speed):
+        rows = [r for r in speed if r["robot"] == robot and r["n"] == 256 and "loop" in r]
+        if len(rows) < 2:
+            continue
+        old, new = rows[0], rows[-1]
+        lines.append(f"- {robot}: the loop ran at {old['loop'] / old['env']:.2f} of its bare "
+                     f"env (old) and {new['loop'] / new['env']:.2f} (new); the new bare env "
+                     f"is {new['env'] / old['loop']:.2f}x the old loop, the most a loop on "
+                     "it can gain, and only if the update cost the collector nothing (the "
+                     "update shares the two cores; docs/env.md)")
+    return ["Ceiling at N = 256 (from the rows above):", *lines] if lines else []
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
