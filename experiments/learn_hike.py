@@ -2,6 +2,7 @@
 campaign of runs that each resume from the last one's committed checkpoint.
 
     python experiments/learn_hike.py [--robot h1] [--seed 0] [--minutes 85] [--init PATH]
+                                     [--recipe v2|v1]   # folder <robot>-s<seed>-v2 | -s<seed>
     python experiments/learn_hike.py --evaluate [--robot h1] [--seed 0]   # benchmark snapshots
     python experiments/learn_hike.py --plot [--robot h1] [--seed 0]
     python experiments/learn_hike.py --compare warm scratch [--robot h1] [--seed 0]
@@ -21,7 +22,8 @@ yet scored with the benchmark (robots placed along the trail, randomisation on) 
   (d) SR >= 50 % on RandomMix levels 0-2 (the benchmark, randomisation on);
   (e) SR >= 70 % on RandomMix levels 0-4 and >= 50 % on each of Ditch, Hurdle, Gap, Forest.
 
-Writes experiments/results/learn_hike/<robot>-s<seed>[-tag]/: oracle.pt, train.csv,
+Writes experiments/results/learn_hike/<robot>-s<seed>[-tag]/ (tag: --tag, else ab3-<arm>, else
+v2 for recipe v2): oracle.pt, train.csv,
 sessions.csv (each start: iteration, commit, recipe), clock.csv (training minutes per
 iteration), evals.csv (walk tests), bench.csv (benchmark per snapshot, category and level),
 milestones.json, summary.md and curve.png. The videos in ``videos/`` are the play mode's
@@ -100,7 +102,9 @@ D_SR, E_SR_MIX, E_SR_CAT = 50.0, 70.0, 50.0
 def run_dir(args) -> Path:
     if args.out:
         return Path(args.out)
-    tag = args.tag or (f"ab3-{args.arm}" if args.arm else "")
+    # recipe v2's campaign is <robot>-s<seed>-v2: <robot>-s<seed> holds the v1 campaign,
+    # which a v2 run must not resume
+    tag = args.tag or (f"ab3-{args.arm}" if args.arm else "v2" if args.recipe == "v2" else "")
     return OUT / f"{args.robot}-s{args.seed}{'-' + tag if tag else ''}"
 
 

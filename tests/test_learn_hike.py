@@ -121,3 +121,15 @@ def test_each_ab_arm_leaves_out_one_change_of_recipe_v2() -> None:
         changed = {k for k in base if arm_cfg.get(k) != base[k]}
         assert changed == keys, (arm, changed)
         assert run_dir(args).name == f"h1-s0-ab3-{arm}"
+
+
+def test_a_v2_campaign_never_resumes_the_v1_campaigns_folder() -> None:
+    """Failed before: ``learn_hike.py --robot h1 --seed 0`` (recipe v2 by default) ran in
+    h1-s0, the v1 campaign's folder, and would have resumed its checkpoint under v2."""
+    sys.path.insert(0, str(ROOT / "experiments"))
+    from learn_hike import make_parser, run_dir
+
+    parse = make_parser().parse_args
+    assert run_dir(parse([])).name == "h1-s0-v2"
+    assert run_dir(parse(["--recipe", "v1"])).name == "h1-s0"
+    assert run_dir(parse(["--tag", "warm"])).name == "h1-s0-warm"
