@@ -350,3 +350,22 @@ def test_a_batch_used_in_place_trains_as_a_copied_one(tmp_path: Path, request) -
                           if not key.startswith(("time/", "frames_per_s"))}
                          for row in csv.DictReader(f)])
     assert len(logs[0]) == 3 and logs[0] == logs[1]
+
+
+def test_batch_scalars_log_each_categorys_share_of_the_robots() -> None:
+    """``share/<category>``: the category mix the curriculum's lagging_mix moves."""
+    from tensordict import TensorDict
+
+    from legoh import keys
+    from legoh.train.runner import batch_scalars
+
+    t, n = 3, 4
+    z = torch.zeros(t, n, 1)
+    nxt = TensorDict({"reward": z, "done": z.bool(),
+                      "info": {"episode_steps": z, "episode_metres": z, "level": z.long(),
+                               "reached": z.bool(), "fell": z.bool(), "diverged": z.bool(),
+                               "progress": z,
+                               "category": torch.tensor([0, 1, 1, 1]).expand(t, n),
+                               "reward_terms": {"alive": z}}}, batch_size=[t, n])
+    stats = batch_scalars(TensorDict({"next": nxt}, batch_size=[t, n]), ["gap", "forest"])
+    assert stats["share/gap"] == 0.25 and stats["share/forest"] == 0.75

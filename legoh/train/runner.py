@@ -198,6 +198,7 @@ def batch_scalars(batch, categories: list[str] | None = None) -> dict[str, float
         for i, name in enumerate(categories):
             mine = cat == i
             stats[f"level/{name}"] = float(level[mine].mean()) if mine.any() else float("nan")
+            stats[f"share/{name}"] = float(mine.float().mean())  # the category mix
             end = ended & mine
             stats[f"fell/{name}"] = (float(nxt[keys.FELL][end].float().mean()) if end.any()
                                      else float("nan"))
