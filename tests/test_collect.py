@@ -232,3 +232,24 @@ def test_a_sigterm_between_batches_keeps_the_sent_batch_readable() -> None:
     finally:
         collector.shutdown()
         env.close()
+
+
+def test_the_learner_mirrors_the_workers_categories() -> None:
+    """With workers, the learner's env (the one a checkpoint saves) takes each robot's
+    category from the batch, as it takes its level. Failed before: the categories the
+    workers' lagging mix moved stayed at the learner's initial split, so a resumed run
+    paired each robot's level with another category."""
+    from tensordict import TensorDict
+
+    from legoh import keys
+    from legoh.train.collect import mirror_curriculum
+
+    cfg = compose_config("trail=hike", "trail.levels=2", "trail.variants=1")
+    env = make_env(cfg, num_envs=5)
+    t = 3
+    nxt = TensorDict({"info": {"level": torch.ones(5, t, dtype=torch.long),
+                               "category": torch.full((5, t), 3),
+                               "randomization": torch.zeros(5, t, 3)}}, batch_size=[5, t])
+    mirror_curriculum(object(), env, TensorDict({"next": nxt}, batch_size=[5, t]))
+    assert env.category.tolist() == [3] * 5 and env.level.tolist() == [1] * 5
+    env.close()

@@ -191,7 +191,8 @@ def _make_ray(cfg, make_env_fn, policy, frames_per_batch, total_frames, per_work
 
 def mirror_curriculum(collector: BaseCollector | PipelinedCollector, env: EnvBase, batch) -> None:
     """With workers, copy their curriculum into the learner's (never stepped) ``env``: each
-    env's level at the batch's last step and the step counter (+ the batch's T steps).
+    env's level and category at the batch's last step and the step counter (+ the batch's T
+    steps).
 
     ``batch`` is (envs, T), envs in worker order. A level that changes at the very last
     reset shows in the next batch: a checkpoint may lag it by one batch. In-process the
@@ -202,6 +203,7 @@ def mirror_curriculum(collector: BaseCollector | PipelinedCollector, env: EnvBas
     ramp, alive, ended = batch["next", keys.RANDOMIZATION][0, -1].tolist()
     env.load_curriculum_state({  # a stage-2 TransformedEnv forwards to its HikingEnv
         "level": batch["next", keys.LEVEL][:, -1],
+        "category": batch["next", keys.CATEGORY][:, -1],  # moved by curriculum.lagging_mix
         "global_steps": env.curriculum_state()["global_steps"] + int(batch.shape[-1]),
         "randomization": {"ramp": ramp, "alive": alive, "ended": ended}})
 
@@ -212,8 +214,9 @@ def _worker_factories(make_env_fn, per_worker: int, workers: int, env: EnvBase |
     if env is None:
         return [_WorkerEnv(make_env_fn, per_worker) for _ in range(workers)]
     state = env.curriculum_state()
+    own = ("level", "category")  # per robot: each worker takes its slice
     return [_WorkerEnv(make_env_fn, per_worker, {
-        **state, "level": state["level"][i * per_worker:(i + 1) * per_worker]})
+        **state, **{k: state[k][i * per_worker:(i + 1) * per_worker] for k in own if k in state}})
         for i in range(workers)]
 
 
