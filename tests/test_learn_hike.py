@@ -113,7 +113,8 @@ def test_each_ab_arm_leaves_out_one_change_of_recipe_v2() -> None:
     base = flat(parse(["--init", "none", "--arm", "v2"]))  # (h1-s0 holds the v1 campaign)
     expected = {"ground": {"env.height_reference"}, "clock": {"env.gait.yield_near"},
                 "hike": {"env.reward_preset"}, "speed": {"env.command.speed"},
-                "start": {"env.spawn_along"}, "mix": {"env.curriculum.lagging_mix"}, "v2": set()}
+                "start": {"env.spawn_along"}, "mix": {"env.curriculum.lagging_mix"}, "v2": set(),
+                "pay": {"env.gait.yield_pay"}}
     assert set(ARMS) == set(expected)
     for arm, keys in expected.items():
         args = parse(["--init", "none", "--arm", arm])

@@ -194,6 +194,18 @@ def test_the_clock_terms_yield_where_its_weight_is_zero(name: str) -> None:
     np.testing.assert_allclose(weighted, [0.0, 0.5 * full[1]], atol=1e-12)
 
 
+@pytest.mark.parametrize("name,best", [("feet_contact_phase", 2.0), ("feet_phase", 1.0)])
+def test_where_the_clock_yields_it_pays_yield_pay_of_its_best(name: str, best: float) -> None:
+    """env.gait.yield_pay: where the clock yields its positive terms pay that share of their
+    best whatever the feet do, so the zone near an obstacle is not a tax (at 0 a robot near
+    a gap lost ~80 % of its step's reward); halfway out, half of each."""
+    params = {**PARAMS[name], "yield_pay": 0.6}
+    state = neutral(**CASES[name][0], clock_weight=np.array([0.0, 0.5]))
+    full = value_of(name, neutral(**CASES[name][0]))
+    np.testing.assert_allclose(REWARD_TERMS[name](state, **params).numpy(),
+                               [0.6 * best, 0.5 * full[1] + 0.5 * 0.6 * best], atol=1e-9)
+
+
 def test_tracking_goal_vel_is_capped_at_goal_speed() -> None:
     fast = neutral(lin_vel_world=rows([3.0, 0.0, 0.0], [0.0, 3.0, 0.0]))
     np.testing.assert_allclose(value_of("tracking_goal_vel", fast), [1.0, 0.0], atol=1e-4)

@@ -106,7 +106,7 @@ RANGES: list[tuple[str, Range]] = [
     ("env.depth.width", COUNT), ("env.depth.height", COUNT),
     ("env.randomization.pool_size", COUNT),
     ("env.min_base_height", FRACTION), ("env.command.zero_prob", FRACTION),
-    ("env.gait.stance", FRACTION),
+    ("env.gait.stance", FRACTION), ("env.gait.yield_pay", FRACTION),
     ("env.command.speed", NON_NEGATIVE_INTERVAL), ("env.randomization.friction",
                                                    NON_NEGATIVE_INTERVAL),
     ("env.randomization.base_mass_offset", INTERVAL),

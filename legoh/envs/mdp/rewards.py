@@ -228,10 +228,12 @@ def dof_vel(s: StepState) -> torch.Tensor:
 
 
 @reward_term
-def feet_contact_phase(s: StepState) -> torch.Tensor:
+def feet_contact_phase(s: StepState, yield_pay: float) -> torch.Tensor:
     """Number of feet whose contact matches the gait clock (stance down, swing up), times
-    the clock's weight here (it yields near edges, pits and obstacles)."""
-    return (s.feet_contact == s.stance).sum(1).to(s.yaw.dtype) * s.clock_weight
+    the clock's weight here (it yields near edges, pits and obstacles); where it yields,
+    ``yield_pay`` of its best (every foot matching) instead."""
+    matched = (s.feet_contact == s.stance).sum(1).to(s.yaw.dtype)
+    return yielded(matched, s.clock_weight, yield_pay * s.feet_contact.shape[1])
 
 
 @reward_term
@@ -241,11 +243,18 @@ def feet_swing_height(s: StepState, height: float) -> torch.Tensor:
 
 
 @reward_term
-def feet_phase(s: StepState, sigma: float) -> torch.Tensor:
+def feet_phase(s: StepState, sigma: float, yield_pay: float) -> torch.Tensor:
     """exp(-sum (lift - clock's lift)^2 / sigma): MuJoCo Playground's feet-phase term, a
     dense signal for stepping (the contact match pays only once a foot is off the ground);
-    times the clock's weight."""
-    return torch.exp(-((s.feet_height - s.swing_target) ** 2).sum(1) / sigma) * s.clock_weight
+    times the clock's weight, and ``yield_pay`` where it yields."""
+    phase = torch.exp(-((s.feet_height - s.swing_target) ** 2).sum(1) / sigma)
+    return yielded(phase, s.clock_weight, yield_pay)
+
+
+def yielded(term: torch.Tensor, clock_weight: torch.Tensor, pay: float) -> torch.Tensor:
+    """A clock term where the clock weighs ``clock_weight``, and ``pay`` where it yields (a
+    zone where the clock pays nothing is a tax on being near an obstacle)."""
+    return term * clock_weight + pay * (1.0 - clock_weight)
 
 
 @reward_term
@@ -288,7 +297,8 @@ def term_params(cfg, target_height: float, reach_radius: float) -> dict[str, dic
         "feet_air_time": {"target": cfg.air_time_target},
         "leap_air_time": {"target": cfg.air_time_target},
         "feet_swing_height": {"height": cfg.gait.swing_height},
-        "feet_phase": {"sigma": cfg.gait.phase_sigma},
+        "feet_phase": {"sigma": cfg.gait.phase_sigma, "yield_pay": cfg.gait.yield_pay},
+        "feet_contact_phase": {"yield_pay": cfg.gait.yield_pay},
         "feet_edge": {"min_level": cfg.edge_min_level},
         "base_height": {"target": target_height},
         "pn_distance": {"radius": reach_radius},
