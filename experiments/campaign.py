@@ -317,10 +317,11 @@ BENCH_CATEGORIES = ("randommix", "ditch", "hurdle", "gap", "forest")
 
 
 def category_panels(axes, runs: list[Path], smooth: int = 15) -> list[str]:
-    """The training row of :func:`compare_runs`, from each run's train.csv against its
-    clock.csv minutes: Gap and Hurdle training level (solid) and falls of their ended
-    episodes (dashed), and the same for Ditch and Forest; a moving mean over ``smooth``
-    iterations. Returns the table's lines (the last iteration's values)."""
+    """The training row of :func:`compare_runs`, from each run's train.csv against frames
+    (an A/B compares per frame: its arms' minutes differ with what shares the cores): Gap
+    and Hurdle training level (solid) and falls of their ended episodes (dotted), and the
+    same for Ditch and Forest; a moving mean over ``smooth`` iterations. Returns the
+    table's lines (means over the last ``smooth`` iterations)."""
     from legoh.eval.curves import read_columns
 
     def mean(x: np.ndarray) -> np.ndarray:
@@ -329,9 +330,9 @@ def category_panels(axes, runs: list[Path], smooth: int = 15) -> list[str]:
         valid = np.convolve(np.isfinite(x), kernel, "same")
         return np.convolve(np.nan_to_num(x), kernel, "same") / np.maximum(valid, 1)
 
-    lines = ["", "| run | minutes | " + " | ".join(f"level {c} | fell {c} (%)"
-                                                  for c in BENCH_CATEGORIES) + " |",
-             "|---|---" + "|---|---" * len(BENCH_CATEGORIES) + "|"]
+    lines = ["", "| run | minutes | frames (M) | " + " | ".join(
+        f"level {c} | fell {c} (%)" for c in BENCH_CATEGORIES) + " |",
+        "|---|---|---" + "|---|---" * len(BENCH_CATEGORIES) + "|"]
     pairs = (("gap", "hurdle"), ("ditch", "forest"))
     for i, run in enumerate(runs):
         cols = read_columns(run / "train.csv")
@@ -339,25 +340,28 @@ def category_panels(axes, runs: list[Path], smooth: int = 15) -> list[str]:
                                                                         "minutes")],
                          strict=True))
         minutes = np.array([clock.get(it, np.nan) for it in cols["iteration"]])
+        evals = read_columns(run / "evals.csv")  # frames per iteration from the walk tests
+        frames = cols["iteration"] * evals["frames"][-1] / evals["iteration"][-1] / 1e6
         for ax, cats in zip(axes, pairs, strict=False):
             for cat, style in zip(cats, ("-", ":"), strict=True):
                 if f"level/{cat}" in cols:
-                    ax.plot(minutes, mean(cols[f"level/{cat}"]), style, color=f"C{i}",
+                    ax.plot(frames, mean(cols[f"level/{cat}"]), style, color=f"C{i}",
                             label=f"{run.name} {cat}")
         for ax, cats in zip(axes[2:], pairs, strict=False):
             for cat, style in zip(cats, ("-", ":"), strict=True):
                 if f"fell/{cat}" in cols:
-                    ax.plot(minutes, 100 * mean(cols[f"fell/{cat}"]), style, color=f"C{i}",
+                    ax.plot(frames, 100 * mean(cols[f"fell/{cat}"]), style, color=f"C{i}",
                             label=f"{run.name} {cat}")
         last = [(np.nanmean(cols.get(f"level/{c}", [np.nan])[-smooth:]),
                  100 * np.nanmean(cols.get(f"fell/{c}", [np.nan])[-smooth:]))
                 for c in BENCH_CATEGORIES]
-        lines.append(f"| {run.name}, training | {np.nanmax(minutes):.1f} | " + " | ".join(
+        lines.append(f"| {run.name}, training | {np.nanmax(minutes):.1f} | "
+                     f"{np.nanmax(frames):.2f} | " + " | ".join(
             f"{lv:.2f} | {fl:.0f}" for lv, fl in last) + " |")
-    label_panels(axes, [("training minutes", "training level: gap (solid), hurdle (dotted)"),
-                        ("training minutes", "training level: ditch (solid), forest (dotted)"),
-                        ("training minutes", "training falls (%): gap, hurdle"),
-                        ("training minutes", "training falls (%): ditch, forest")])
+    label_panels(axes, [("frames (M)", "training level: gap (solid), hurdle (dotted)"),
+                        ("frames (M)", "training level: ditch (solid), forest (dotted)"),
+                        ("frames (M)", "training falls (%): gap, hurdle"),
+                        ("frames (M)", "training falls (%): ditch, forest")])
     return lines
 
 
