@@ -316,7 +316,7 @@ def compare_runs(runs: list[Path], stem: Path, test: str, test_title: str) -> Pa
 BENCH_CATEGORIES = ("randommix", "ditch", "hurdle", "gap", "forest")
 
 
-def category_panels(axes, runs: list[Path], smooth: int = 15) -> list[str]:
+def category_panels(axes, runs: list[Path], smooth: int = 30) -> list[str]:
     """The training row of :func:`compare_runs`, from each run's train.csv against frames
     (an A/B compares per frame: its arms' minutes differ with what shares the cores): Gap
     and Hurdle training level (solid) and falls of their ended episodes (dotted), and the

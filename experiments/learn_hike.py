@@ -94,9 +94,7 @@ ARMS = {
     "speed": ["env.command.speed=[0.3,1.0]"],  # commands to 1 m/s
     "start": ["env.spawn_along=0"],  # every robot at the trail start
     "mix": ["env.curriculum.lagging_mix=0"],  # each robot keeps its category
-    # a candidate, v2 plus one change: the clock's terms pay 0.6 of their best where it
-    # yields instead of nothing (docs/oracle.md, "The zone tax")
-    "pay": ["env.gait.yield_pay=0.6"],
+    "pay": ["env.gait.yield_pay=0"],  # the clock's terms pay nothing where it yields
 }
 CATEGORIES = ("randommix", "ditch", "hurdle", "gap", "forest")
 D_SR, E_SR_MIX, E_SR_CAT = 50.0, 70.0, 50.0

@@ -186,11 +186,14 @@ def test_neutral_state_has_no_penalty() -> None:
 
 @pytest.mark.parametrize("name", ["feet_contact_phase", "feet_swing_height", "feet_phase"])
 def test_the_clock_terms_yield_where_its_weight_is_zero(name: str) -> None:
-    """Near an edge, pit or obstacle (clock weight 0) the gait clock neither pays nor
-    charges; halfway out of that zone, half."""
+    """Near an edge, pit or obstacle (clock weight 0) the gait clock does not judge the
+    feet (with ``yield_pay=0``: neither pays nor charges); halfway out of that zone, half."""
     changes = CASES[name][0]
-    full = value_of(name, neutral(**changes))
-    weighted = value_of(name, neutral(**changes, clock_weight=np.array([0.0, 0.5])))
+    params = {**PARAMS.get(name, {})}
+    params.update({"yield_pay": 0.0} if "yield_pay" in params else {})
+    full = REWARD_TERMS[name](neutral(**changes), **params).numpy()
+    weighted = REWARD_TERMS[name](neutral(**changes, clock_weight=np.array([0.0, 0.5])),
+                                  **params).numpy()
     np.testing.assert_allclose(weighted, [0.0, 0.5 * full[1]], atol=1e-12)
 
 

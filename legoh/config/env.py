@@ -265,11 +265,11 @@ class GaitConfig:
     # 0: the clock everywhere (the shipped oracles' recipe)
     yield_near: float = 0.6  # m
     yield_fade: float = 0.6  # m
-    # what the clock's rewards pay where it yields, as a share of their best: 0 taxed the
-    # zone (the H1 v2 campaign's first session: near a gap a robot lost ~80 % of its
-    # step's reward); ~0.6 is what its walkers earned of them on RandomMix, so a step near an
-    # obstacle pays as one elsewhere (docs/oracle.md, "The zone tax")
-    yield_pay: float = 0.0
+    # what the clock's positive terms pay where it yields, as a share of their best: at 0
+    # the zone was a tax (they are half a walker's positive reward, and Gap trails lie 90 %
+    # in the zone); 0.6 is what the H1 v2 campaign's walkers earned of them on RandomMix, so
+    # a step near an obstacle pays as one elsewhere (docs/oracle.md, "Recipe v2")
+    yield_pay: float = 0.6
 
 
 @dataclass
