@@ -189,8 +189,9 @@ def test_the_clock_terms_yield_where_its_weight_is_zero(name: str) -> None:
     """Near an edge, pit or obstacle (clock weight 0) the gait clock does not judge the
     feet (with ``yield_pay=0``: neither pays nor charges); halfway out of that zone, half."""
     changes = CASES[name][0]
-    params = {**PARAMS.get(name, {})}
-    params.update({"yield_pay": 0.0} if "yield_pay" in params else {})
+    params = PARAMS.get(name, {})
+    if "yield_pay" in params:
+        params = {**params, "yield_pay": 0.0}
     full = REWARD_TERMS[name](neutral(**changes), **params).numpy()
     weighted = REWARD_TERMS[name](neutral(**changes, clock_weight=np.array([0.0, 0.5])),
                                   **params).numpy()
