@@ -95,6 +95,7 @@ ARMS = {
     "start": ["env.spawn_along=0"],  # every robot at the trail start
     "mix": ["env.curriculum.lagging_mix=0"],  # each robot keeps its category
     "pay": ["env.gait.yield_pay=0"],  # the clock's terms pay nothing where it yields
+    "terminate": ["env.reach_truncates=false"],  # a reach ends the episode unbootstrapped
 }
 CATEGORIES = ("randommix", "ditch", "hurdle", "gap", "forest")
 D_SR, E_SR_MIX, E_SR_CAT = 50.0, 70.0, 50.0

@@ -293,15 +293,26 @@ def test_a_new_termination_term_ends_episodes(make: EnvFactory, monkeypatch) -> 
     assert env.fell_last.tolist() == [False, True]  # a failure: the gate counts it
 
 
-def test_robot_at_terminus_reaches(make: EnvFactory) -> None:
-    env = make(2)
+@pytest.mark.parametrize("truncates", [True, False], ids=["truncates", "terminates"])
+def test_robot_at_terminus_reaches(make: EnvFactory, truncates: bool) -> None:
+    """A reach is reported either way; by default (``env.reach_truncates``) it truncates the
+    episode, so GAE bootstraps past it and reaching costs no future reward (a terminating
+    reach taught the H1 v2 oracle to stop 1-1.4 m short of the terminus)."""
+    env = make(2, reach_truncates=truncates)
     td = env.reset()
     env.sim.qpos[1, 0:2] = torch.as_tensor(env.trails.terminus[int(env.goals.tile[1])])
     out = zero_step(env, td)
     assert flags(out, keys.REACHED) == [False, True]
     assert flags(out, keys.FELL) == [False, False]
-    assert flags(out, keys.TERMINATED) == [False, True]
-    assert flags(out, keys.TRUNCATED) == [False, False]
+    assert flags(out, keys.DONE) == [False, True]
+    assert flags(out, keys.TERMINATED) == [False, not truncates]
+    assert flags(out, keys.TRUNCATED) == [False, truncates]
+    assert env.fell_last.tolist() == [False, False]  # a reach is never a fall
+
+
+def test_reach_truncates_by_default_and_terminates_under_recipe_v1() -> None:
+    assert config("h1", "flat").env.reach_truncates is True
+    assert config("h1", "flat", "+experiment=recipe_v1").env.reach_truncates is False
 
 
 def test_episode_metres_count_the_path_walked_and_restart_with_the_episode(make: EnvFactory

@@ -302,6 +302,10 @@ class EnvConfig:
     # (stage 2 trains with past, docs/unified.md; evaluations use radius)
     waypoint_pass: WaypointPass = WaypointPass.radius
     reach_radius: float = 0.5  # m: terminus reached in training (evaluation: eval.reach_radius)
+    # a reach truncates the episode (bootstrapped: reaching costs no future reward, as Extreme
+    # Parkour's last goal); false: it terminates (recipe v1; with positive steps the robot
+    # learns to stop short of the terminus: docs/oracle.md, "Recipe v2")
+    reach_truncates: bool = True
     max_roll: float = 0.8  # rad, pose check
     max_pitch: float = 1.0  # rad, pose check
     min_base_height: float = 0.5  # fraction of the nominal base height above the ground

@@ -30,7 +30,7 @@ from legoh.envs.compilation import derivations
 from legoh.envs.constants import set_constants
 from legoh.envs.mdp import events, observations, rewards
 from legoh.envs.mdp.state import AirTime, Goals, Memory, NavProgress, compute_state
-from legoh.envs.mdp.terminations import TERMINATIONS, check_terminations, diverged_envs, no_flags
+from legoh.envs.mdp.terminations import check_terminations, diverged_envs, no_flags, termination_table
 from legoh.envs.physics import make_physics, physics_device, sim_options
 from legoh.envs.randomization import draw_physics
 from legoh.envs.scene import Scene, build_scene
@@ -71,7 +71,7 @@ class HikingEnv(EnvBase):
         self.gen = torch.Generator(device=self.device).manual_seed(seed)
         self.reward_terms, self.only_positive = rewards.reward_table(
             env, robot, self.robot.nominal_base_height, self.reach_radius)
-        self.terminations = dict(TERMINATIONS)
+        self.terminations = termination_table(env.reach_truncates)
         self.depth_cam = (self.sim.make_depth_camera(robot.camera.fovy_deg, env.depth.width,
                                                      env.depth.height, env.depth.far,
                                                      env.depth.backend)

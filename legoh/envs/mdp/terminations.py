@@ -6,6 +6,9 @@ episode ends when the term fires:
 * ``success`` and ``failure`` terminate it (no bootstrapping past it). A failure, unless a
   success fired on the same step, is what the ``termination`` reward term pays and what the
   randomisation gate counts as a fall.
+* ``goal`` truncates it (the value past it is bootstrapped) and is reported like a
+  success: the task is done, yet reaching it costs the robot no future reward (Extreme
+  Parkour ends an episode at its last goal as a time-out; ``env.reach_truncates``).
 * ``time_out`` truncates it (the value past it is bootstrapped).
 
 A step whose simulation diverged (the env was reset in place) ends truncated and reports no
@@ -31,6 +34,7 @@ class Outcome(StrEnum):
 
     success = "success"  # terminated: the task is done
     failure = "failure"  # terminated: the robot failed (the termination reward term pays)
+    goal = "goal"  # truncated: the task is done (reported, never a failure)
     time_out = "time_out"  # truncated
 
 
@@ -74,6 +78,17 @@ TERMINATIONS: dict[str, Termination] = {
 }
 
 
+def termination_table(reach_truncates: bool) -> dict[str, Termination]:
+    """The env's table: ``TERMINATIONS``, with a reach that truncates (``Outcome.goal``)
+    when ``reach_truncates``. A reach that terminates cuts off the value of the steps after
+    it: where every step pays more than it costs, a policy learns to stop short of the
+    terminus (the H1 v2 campaign's robots stood 1.0-1.4 m from it; docs/oracle.md)."""
+    table = dict(TERMINATIONS)
+    if reach_truncates and "reached" in table:
+        table["reached"] = Termination(table["reached"].fn, Outcome.goal)
+    return table
+
+
 def check_terminations(table: dict[str, Termination], env, s: StepState,
                        diverged: torch.Tensor) -> Ends:
     """Every term of ``table`` on the step's state ``s``; ``diverged`` (N,) bool: envs
@@ -84,12 +99,13 @@ def check_terminations(table: dict[str, Termination], env, s: StepState,
         fired = [flags[name] for name, term in table.items() if term.outcome == outcome]
         return torch.stack(fired).any(0) if fired else torch.zeros_like(diverged)
 
-    success, failure = any_of(Outcome.success), any_of(Outcome.failure)
+    success, goal, failure = (any_of(Outcome.success), any_of(Outcome.goal),
+                              any_of(Outcome.failure))
     terminated = success | failure
-    truncated = (any_of(Outcome.time_out) | diverged) & ~terminated
+    truncated = (any_of(Outcome.time_out) | goal | diverged) & ~terminated
     reported = {name: flags[name] for name, term in table.items()
                 if term.outcome != Outcome.time_out}
-    return Ends(terminated, truncated, failure & ~success, reported)
+    return Ends(terminated, truncated, failure & ~(success | goal), reported)
 
 
 def no_flags(table: dict[str, Termination], none: torch.Tensor) -> dict[str, torch.Tensor]:
