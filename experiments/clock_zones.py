@@ -32,7 +32,7 @@ OUT = Path(__file__).resolve().parent / "results" / "clock_zones.md"
 def path_points(trails, k: int, step: float = 0.05) -> np.ndarray:
     """Points every ``step`` m along tile ``k``'s expert path (start, then its waypoints)."""
     pts = np.vstack([trails.start[k, :2], trails.waypoints[k, : trails.count[k]]])
-    out = [a + (b - a) * t for a, b in zip(pts[:-1], pts[1:])
+    out = [a + (b - a) * t for a, b in zip(pts[:-1], pts[1:], strict=True)
            for t in np.arange(0.0, 1.0, step / max(np.linalg.norm(b - a), step))]
     return np.array(out)
 
@@ -52,9 +52,9 @@ def main() -> None:
              "", "Per trail category and level, along the expert paths: the share where the "
              "clock yields (weight < 1) and its mean weight. With `env.gait.yield_pay=0` the "
              "clock's terms (feet_phase, feet_contact_phase: half the positive reward of the "
-             "H1 v2 campaign's walkers on RandomMix) pay the mean weight's share of what the same steps earn "
-             "on open ground; with `yield_pay=p`, a walker earning p of their best pays alike "
-             "everywhere.", "",
+             "H1 v2 campaign's walkers on RandomMix) pay the mean weight's share of what "
+             "the same steps earn on open ground; with `yield_pay=p`, a walker earning p "
+             "of their best pays alike everywhere.", "",
              "| category | level | yields on | mean weight |", "|---|---|---|---|"]
     for (c, level), ws in sorted(weights.items()):
         w = np.concatenate(ws)

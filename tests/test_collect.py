@@ -241,7 +241,6 @@ def test_the_learner_mirrors_the_workers_categories() -> None:
     paired each robot's level with another category."""
     from tensordict import TensorDict
 
-    from legoh import keys
     from legoh.train.collect import mirror_curriculum
 
     cfg = compose_config("trail=hike", "trail.levels=2", "trail.variants=1")

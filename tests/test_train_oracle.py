@@ -356,7 +356,6 @@ def test_batch_scalars_log_each_categorys_share_of_the_robots() -> None:
     """``share/<category>``: the category mix the curriculum's lagging_mix moves."""
     from tensordict import TensorDict
 
-    from legoh import keys
     from legoh.train.runner import batch_scalars
 
     t, n = 3, 4

@@ -2,8 +2,9 @@
 
 Observations are a dict of float32 arrays named after the ``("obs", ...)`` keys ("proprio",
 "proprio_history", "scandots", "privileged", "goal", and "depth" when enabled), without the
-batch dimension. Episodes end with ``terminated`` (fell or reached) or ``truncated`` (timeout
-or a diverged simulation); as gymnasium expects, the caller resets. ``info`` carries the
+batch dimension. Episodes end with ``terminated`` (fell) or ``truncated`` (reached, timeout
+or a diverged simulation; ``info["reached"]`` tells a reach); as gymnasium expects, the caller
+resets. ``info`` carries the
 ``("info", ...)`` signals as Python scalars, the reward terms and the expert goals.
 """
 

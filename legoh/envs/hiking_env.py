@@ -5,9 +5,10 @@ The interface (keys in ``legoh.keys``; docs/env.md has shapes, frames and units)
 * action (N, A): joint offsets; target = default + action_scale * clip(action).
 * observations: proprioception and its history, scandots, privileged state, goal inputs,
   expert near goals, optional depth frames; ``("info", ...)`` signals for metrics and logs.
-* ``terminated``: a success or failure term of ``mdp.terminations`` fired (reached the
-  terminus, fell); ``truncated``: a time-out term fired, or the simulation diverged and was
-  reset. ``done`` = either.
+* ``terminated``: a success or failure term of ``mdp.terminations`` fired (fell);
+  ``truncated``: a goal or time-out term fired (reached the terminus, under
+  ``env.reach_truncates``; the episode length), or the simulation diverged and was reset.
+  ``done`` = either.
 
 The env is orchestration: physics from ``legoh.envs.physics`` (its device is the env's),
 one ``StepState`` per step (``mdp.state``), then the term tables of ``mdp.events``,
@@ -30,7 +31,12 @@ from legoh.envs.compilation import derivations
 from legoh.envs.constants import set_constants
 from legoh.envs.mdp import events, observations, rewards
 from legoh.envs.mdp.state import AirTime, Goals, Memory, NavProgress, compute_state
-from legoh.envs.mdp.terminations import check_terminations, diverged_envs, no_flags, termination_table
+from legoh.envs.mdp.terminations import (
+    check_terminations,
+    diverged_envs,
+    no_flags,
+    termination_table,
+)
 from legoh.envs.physics import make_physics, physics_device, sim_options
 from legoh.envs.randomization import draw_physics
 from legoh.envs.scene import Scene, build_scene
