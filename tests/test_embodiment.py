@@ -23,18 +23,22 @@ def foot_geom_types(env) -> list[int]:
     return sorted(model.geom_type[(model.geom_bodyid == foot) & (model.geom_contype > 0)])
 
 
-@pytest.mark.parametrize(("robot", "algo"), [("h1", "oracle"), ("g1", "oracle"),
-                                             ("h1", "unified")])
-def test_committed_checkpoints_evaluate_on_their_own_feet(robot: str, algo: str) -> None:
+@pytest.mark.parametrize(("robot", "algo", "feet"), [
+    ("h1", "oracle", FeetCollider.spheres),  # the recipe-v2 oracle (shipped 2026-12-06)
+    ("g1", "oracle", FeetCollider.source), ("h1", "unified", FeetCollider.source)])
+def test_committed_checkpoints_evaluate_on_their_own_feet(robot: str, algo: str,
+                                                          feet: FeetCollider) -> None:
     cfg = compose_config(f"robot={robot}", f"algo={algo}", "trail=flat", "trail.variants=1",
                          "trail.levels=1", "eval.robots=1", "eval.levels=[0]")
     assert cfg.robot.feet_collider == FeetCollider.spheres  # what new training uses
     own, path = for_checkpoint(cfg, "pretrained")
-    assert checkpoint_feet(path) == "source"
-    assert own.robot.feet_collider == FeetCollider.source
+    assert checkpoint_feet(path) == feet.value
+    assert own.robot.feet_collider == feet
     env = make_eval_env(own)
-    if robot == "h1":  # the MJCF's three capsules, not the four new spheres
-        assert foot_geom_types(env) == [mujoco.mjtGeom.mjGEOM_CAPSULE] * 3
+    if robot == "h1":  # the MJCF's three capsules, or the four spheres
+        assert foot_geom_types(env) == (
+            [mujoco.mjtGeom.mjGEOM_CAPSULE] * 3 if feet == FeetCollider.source
+            else [mujoco.mjtGeom.mjGEOM_SPHERE] * 4)
     env.close()
 
 

@@ -114,7 +114,7 @@ def test_each_ab_arm_leaves_out_one_change_of_recipe_v2() -> None:
     expected = {"ground": {"env.height_reference"}, "clock": {"env.gait.yield_near"},
                 "hike": {"env.reward_preset"}, "speed": {"env.command.speed"},
                 "start": {"env.spawn_along"}, "mix": {"env.curriculum.lagging_mix"}, "v2": set(),
-                "pay": {"env.gait.yield_pay"}}
+                "pay": {"env.gait.yield_pay"}, "terminate": {"env.reach_truncates"}}
     assert set(ARMS) == set(expected)
     for arm, keys in expected.items():
         args = parse(["--init", "none", "--arm", arm])
