@@ -4,8 +4,8 @@ Observations are a dict of float32 arrays named after the ``("obs", ...)`` keys 
 "proprio_history", "scandots", "privileged", "goal", and "depth" when enabled), without the
 batch dimension. Episodes end with ``terminated`` (fell) or ``truncated`` (reached, timeout
 or a diverged simulation; ``info["reached"]`` tells a reach); as gymnasium expects, the caller
-resets. ``info`` carries the
-``("info", ...)`` signals as Python scalars, the reward terms and the expert goals.
+resets. ``info`` carries the ``("info", ...)`` signals as Python scalars, the reward terms and
+the expert goals.
 """
 
 from __future__ import annotations
