@@ -82,7 +82,7 @@ LEAN = ["algo.update_precision=bfloat16", "collector.overlap=true",
 # thresholds 0.6 / 0.3 (the walker covers ~60 % of its commanded distance, so at the
 # paper's 0.8 no robot was promoted in 25 minutes).
 RECIPES = {"v1": ("hike", ["+experiment=recipe_v1"]), "v2": ("leap", [])}
-HIKE = RECIPES["v1"][1]  # the students' scripts train with their v1 teachers' recipe
+HIKE = RECIPES["v1"][1]  # paper_tables' committed jobs trained with the v1 teachers' recipe
 # Issue 44's A/B round (``--arm``): recipe v2 whole, and v2 without one of its changes at a
 # time (leave one out), each a short run from the same warm start; training only (the walk
 # test and the benchmark stay on v2's trails and protocol). Run folder: <robot>-s<seed>-ab3-<arm>

@@ -16,7 +16,8 @@ shows on the curves where it took over.
 
 Training trail (``--trail``, default ``hike``): RandomMix, Ditch, Hurdle, Gap and Forest in
 one map, each robot its own category and level under the curriculum, as the oracle learned
-(``learn_hike.HIKE``: its curriculum thresholds and reward recipe). Why not flat, though
+(``--recipe``: learn_hike's, v2 by default, the shipped teachers' since 2026-12-06; v1 for
+the students of the v1 oracles, e.g. to resume their campaigns). Why not flat, though
 (s1) is a flat walk: the paper distils the unified policy on the hiking trails; the
 teacher's labels are worth most on the terrain it learned; the curriculum starts every
 robot on level 0, where RandomMix is nearly flat, so walking is learned first there anyway;
@@ -77,7 +78,7 @@ from campaign import (  # noqa: E402
     training_row,
     write_rows,
 )
-from learn_hike import CATEGORIES, HIKE, bench_overrides, bench_snapshot  # noqa: E402
+from learn_hike import CATEGORIES, RECIPES, bench_overrides, bench_snapshot  # noqa: E402
 from learn_walk import ROBOTS, compose_run, read_evals, walk_env_settings, walk_test  # noqa: E402
 from omegaconf import OmegaConf  # noqa: E402
 
@@ -134,14 +135,11 @@ def shown(path: Path) -> str:
 def student_config(args, teacher: Path, trail: str, more: list[str]):
     """The stage-2 config of this campaign (``more`` after its recipe, before the user's
     overrides)."""
-    # the hike preset, the oracle's own: the velocity kernel toward the next waypoint, times
-    # the robot's reward_scales (until session 4 learn_hike's HIKE set it as an absolute
-    # weight over the walk preset: the same weights for H1, half the kernel for G1)
-    # the v1 recipe (conf/experiment/recipe_v1.yaml) in training and benchmark alike: the
-    # shipped teachers' own
-    return compose_run(args.robot, args.seed, "hike", trail,
-                       [f"algo={args.algo}", f"algo.oracle_checkpoint={teacher}", *HIKE, *more,
-                        *args.overrides])
+    # the teacher's recipe (``--recipe``: learn_hike's reward preset and overrides) in
+    # training and benchmark alike
+    return compose_run(args.robot, args.seed, RECIPES[args.recipe][0], trail,
+                       [f"algo={args.algo}", f"algo.oracle_checkpoint={teacher}",
+                        *RECIPES[args.recipe][1], *more, *args.overrides])
 
 
 def train(args) -> None:
@@ -159,7 +157,8 @@ def train(args) -> None:
     frames_per_it = cfg.algo.num_envs * cfg.algo.steps_per_env
     session = Session(out, out / f"{cfg.algo.name}.pt", frames_per_it, args.minutes,
                       args.eval_every, [f"algo={args.algo}", f"teacher={shown(teacher)}",
-                                        f"teacher_sha={sha}", *recipe, *args.overrides])
+                                        f"teacher_sha={sha}", f"recipe={args.recipe}",
+                                        *recipe, *args.overrides])
 
     def on_iteration(it: int, stats: dict, policy) -> bool:
         due, stop = session.iteration_done(it)
@@ -495,6 +494,9 @@ def make_parser() -> argparse.ArgumentParser:
     parser.add_argument("--teacher", default="pretrained",
                         help="pretrained (else the learn_hike oracle) | PATH")
     parser.add_argument("--trail", default="hike", help="training trail")
+    parser.add_argument("--recipe", choices=sorted(RECIPES), default="v2",
+                        help="the teacher's hiking recipe (learn_hike --recipe): v2, the "
+                             "shipped oracles' since 2026-12-06; v1, the oracles before")
     parser.add_argument("--average", type=int, default=0, metavar="K",
                         help="benchmark the mean of the newest K snapshots' weights")
     parser.add_argument("--compare", nargs="+", metavar="TAG",

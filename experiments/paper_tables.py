@@ -53,9 +53,10 @@ RECORD = (".hydra/config.yaml", "benchmark.csv", "benchmark_runs.csv", "train.cs
 # Every job trains as learn_student's campaign does (the hike map, the hike reward preset and
 # its curriculum) and is scored on all five categories, levels 0-4; no video
 # the camera the committed jobs learned with (the default became 55 degrees after them):
-# a new seed or table joins them through the same pixels
+# a new seed or table joins them through the same pixels; every job from scratch (init=none:
+# the default would start LEGO-H from the shipped student and the baselines from nothing)
 RECIPE = ["trail=hike", "env.reward_preset=hike", *HIKE, "eval.levels=[0,1,2,3,4]",
-          "video=false", "robot.camera.pitch_deg=30"]
+          "video=false", "robot.camera.pitch_deg=30", "init=none"]
 NAN = (float("nan"), float("nan"))
 
 

@@ -158,6 +158,13 @@ def test_the_students_reward_is_its_oracles() -> None:
         weights = preset_weights(cfg.env.reward_preset, rewards, dict(cfg.robot.table6_weights),
                                  dict(cfg.robot.reward_scales))
         assert weights["tracking_waypoint_vel"] == kernel and weights["tracking_lin_vel"] == 0
+    # the teacher's recipe (--recipe): v2 by default (the shipped oracles'), v1 selectable.
+    # Failed before: always v1 (no --recipe)
+    for recipe, preset, truncates in (("v2", "leap", True), ("v1", "hike", False)):
+        args = learn_student.make_parser().parse_args(["--recipe", recipe])
+        cfg = learn_student.student_config(args, Path("teacher.pt"), "hike", [])
+        assert (cfg.env.reward_preset, cfg.env.reach_truncates) == (preset, truncates)
+        assert str(cfg.trail.geometry).split(".")[-1] == recipe
 
 
 def test_snapshots_are_scored_through_the_camera_they_learned_with(tmp_path) -> None:

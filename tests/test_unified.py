@@ -195,6 +195,39 @@ def test_on_iteration_sees_the_student_and_can_stop_training(artefacts, tmp_path
     assert list(policy.module) == list(run.algorithm.student.policy.module)
 
 
+def test_a_new_student_starts_from_a_students_weights(artefacts, tmp_path, capsys):
+    """init=PATH (or pretrained: the shipped <robot>_<algo>.pt) starts a new run from a
+    stage-2 checkpoint's student weights, its critic the teacher's; another student type
+    is refused. Failed before: stage 2 ignored init= (every student from scratch)."""
+    first = train_student(tiny("unified", artefacts), tmp_path / "a")
+    state = torch.load(first.checkpoint, map_location="cpu", weights_only=False)
+    for name in ("navigation", "locomotion"):  # weights no seeded init could give
+        state["models"][name] = {k: v + 0.5 if v.is_floating_point() else v
+                                 for k, v in state["models"][name].items()}
+    torch.save(state, tmp_path / "moved.pt")
+    first.algorithm.student.navigation.load_state_dict(state["models"]["navigation"])
+    first.algorithm.student.locomotion.load_state_dict(state["models"]["locomotion"])
+    hook_weights = {}
+
+    def hook(it, stats, policy):  # the first update moved the weights a little, not away
+        hook_weights.update(policy.state_dict())
+        return True
+
+    warm = train_student(tiny("unified", artefacts, f"init={tmp_path / 'moved.pt'}",
+                              "algo.lr=1e-9"), tmp_path / "b", on_iteration=hook)
+    assert "student weights from" in capsys.readouterr().out
+    trained = first.algorithm.student.policy.state_dict()
+    # (the adaptive schedule's floor, 1e-5, moves a weight ~1e-5 a step)
+    assert all(torch.allclose(hook_weights[k], trained[k], atol=1e-4) for k in trained)
+    cold = train_student(tiny("unified", artefacts, "init=none", "algo.lr=1e-9"),
+                         tmp_path / "c")
+    assert not any(torch.allclose(v, trained[k], atol=0.1)
+                   for k, v in cold.algorithm.student.policy.state_dict().items())
+    assert warm.iterations == 1
+    with pytest.raises(CheckpointError, match="student 'lego_h'"):
+        train_student(tiny("rma_b", artefacts, f"init={first.checkpoint}"), tmp_path / "d")
+
+
 def test_checkpoint_of_another_student_is_refused(artefacts, tmp_path):
     run = train_student(tiny("rma_b", artefacts), tmp_path / "a")
     with pytest.raises(CheckpointError, match="student 'rma_b'"):

@@ -88,9 +88,11 @@ class Config:
     seed: int = 0
     device: str = "cpu"  # learner and policy: cpu | cuda | cuda:N | auto (envs: CPU)
     resume: str | None = None  # train: a checkpoint to continue from (a killed run resumes)
-    # train (the oracle): a new run (own folder, fresh optimiser, curriculum from level 0)
-    # starting from a checkpoint's weights. "pretrained" (the default): the robot's shipped
-    # pretrained/<robot>_oracle.pt, or from scratch when it ships none; none: from scratch
+    # train: a new run (own folder, fresh optimiser, curriculum from level 0) starting from a
+    # checkpoint's weights. "pretrained" (the default): the robot's shipped file of the stage
+    # trained, pretrained/<robot>_oracle.pt (stage 1) or <robot>_<algo.name>.pt (a student:
+    # its weights; the critic and the action prior are the teacher's), or from scratch when
+    # it ships none; none: from scratch
     init: str | None = "pretrained"
     checkpoint: str | None = None  # eval, play: the policy; none: the untrained one
     viewer: Viewer = Viewer.video  # play: a video (video) or an interactive page (web)

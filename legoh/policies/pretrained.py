@@ -36,25 +36,31 @@ def shipped_stage(cfg: DictConfig) -> str:
 
 def shipped_oracle(robot: str) -> Path | None:
     """``pretrained/<robot>_oracle.pt`` when the repository ships one, else None."""
+    return shipped(robot, "oracle")
+
+
+def shipped(robot: str, stage: str) -> Path | None:
+    """``pretrained/<robot>_<stage>.pt`` when the repository ships one, else None."""
     try:
-        return pretrained_path(robot)
+        return pretrained_path(robot, stage)
     except FileNotFoundError:
         return None
 
 
-def init_checkpoint(value: str | None, robot: str) -> Path | None:
-    """The checkpoint an ``init=`` setting starts an oracle from: None for ``none`` (or
-    null); for ``pretrained``, the robot's shipped oracle, or None (from scratch, said on the
-    console) when it ships none; else the path."""
+def init_checkpoint(value: str | None, robot: str, stage: str = "oracle") -> Path | None:
+    """The checkpoint an ``init=`` setting starts a run of ``stage`` from (``oracle``, or a
+    student's name: ``unified``, ``ep_h``, ...): None for ``none`` (or null); for
+    ``pretrained``, the robot's shipped file of that stage, or None (from scratch, said on
+    the console) when it ships none; else the path."""
     if value is None or str(value).lower() in ("none", "null", ""):
         return None
     if value != "pretrained":
         return Path(value)
-    shipped = shipped_oracle(robot)
-    if shipped is None:
-        print(f"[legoh] init=pretrained: no pretrained oracle ships for robot {robot!r} "
+    path = shipped(robot, stage)
+    if path is None:
+        print(f"[legoh] init=pretrained: no pretrained {stage} ships for robot {robot!r} "
               f"({PRETRAINED_DIR}); training from scratch")
-    return shipped
+    return path
 
 
 def benchmark_protocol(cfg: DictConfig) -> dict:

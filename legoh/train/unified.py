@@ -28,6 +28,7 @@ from legoh.modules.students import Student, unroll
 from legoh.objectives.distill import distillation_loss
 from legoh.objectives.ppo import make_ppo, ppo_update, use_bfloat16
 from legoh.policies.oracle import load_teacher
+from legoh.policies.pretrained import init_checkpoint
 from legoh.policies.student import (
     build_student,
     make_student_env,
@@ -125,6 +126,23 @@ class StudentDistillation(Algorithm):
     def read_checkpoint(self, path: str | Path) -> dict:
         """A checkpoint of this student type, robot and layout."""
         return read_student_checkpoint(self.cfg, path, self.student)
+
+    def warm_start(self, path: Path) -> None:
+        """The student's weights from stage-2 checkpoint ``path`` (``init=``): same student,
+        robot, layout and sensors (:func:`read_student_checkpoint` names a mismatch). The
+        critic stays this teacher's, the optimisers and the action prior start afresh: the
+        prior models the teacher's actions, and the teacher may be another one. PPO starts
+        at the learning rate the checkpoint's schedule reached, as an oracle's warm start."""
+        state = read_student_checkpoint(self.cfg, path, self.student)
+        for name, module in self.student.modules().items():
+            module.load_state_dict(state["models"][name])
+        lr = state.get("optimizers", {}).get("ppo", {}).get("param_groups", [{}])[0].get("lr")
+        for group in self.optimizers["ppo"].param_groups:
+            group["lr"] = lr or group["lr"]
+        print(f"[legoh] student weights from {path} (init=, iteration "
+              f"{state.get('iteration', '?')}; its teacher {state['extra'].get('oracle')}); "
+              f"the teacher now {self.teacher_path}; PPO at lr "
+              f"{self.optimizers['ppo'].param_groups[0]['lr']:.2e}")
 
     def load_state_dict(self, state: dict) -> None:
         super().load_state_dict(state)
@@ -251,6 +269,8 @@ def train_student(cfg: DictConfig, out_dir: Path, resume: str | None = None,
         if resume:
             runner.resume(resume)
         else:
+            if (init := init_checkpoint(cfg.init, cfg.robot.name, cfg.algo.name)) is not None:
+                algorithm.warm_start(init)
             algorithm.pretrain_prior()
         hook = None if on_iteration is None else (
             lambda it, stats: on_iteration(it, stats, student.policy))
