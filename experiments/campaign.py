@@ -161,12 +161,17 @@ def finish_figure(fig, axes, titles: list[str], path: Path) -> None:
     plt.close(fig)
 
 
+def git_commit() -> str:
+    """This checkout's commit (short hash), or ``unknown`` outside a git repository."""
+    return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
+                          capture_output=True, text=True).stdout.strip() or "unknown"
+
+
 def record_session(out: Path, iteration: int, frames: int, minutes: float,
                    overrides: list[str]) -> None:
     """One row of ``sessions.csv`` per (re)start: where it started, the commit and the
     recipe (its overrides), so the curves can mark where a campaign's recipe changed."""
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
-                            capture_output=True, text=True).stdout.strip() or "unknown"
+    commit = git_commit()
     path = out / "sessions.csv"
     new = not path.exists()
     with open(path, "a", newline="") as f:

@@ -10,14 +10,17 @@ Table 1 by ``ablation_temporal`` (GRU vs causal transformer), Table 2 by ``ablat
 ``plugin_hlm`` (EP-H vs EP-H + HLM), Table 4 by ``robots`` (H1 vs G1) and Table 8 by
 ``table8`` (EP-H vs RMA-B per trail category). ``--run`` first runs every job those studies
 compare, each once (LEGO-H on H1 answers four tables; 8 jobs a seed, not 11), one at a
-time: ``run.py`` with the campaign's recipe (``RECIPE``: learn_student's hike map, reward
-preset and curriculum; scored on all five categories, levels 0-4), the robot's shipped
-oracle teaching (read-only), the same ``--frames`` and ``--eval-runs`` (the std of our cells
-is over those runs, as the paper's is over its 5); Hydra overrides after the options go to
-every job (e.g. the fast loop). Each finished job's record (config, benchmark, training
-log) is copied to ``experiments/results/paper_jobs/<robot>-<algo>-seed<seed>/`` and
-committed, so a sweep longer than a session resumes on a fresh clone: a recorded job is
-skipped, a killed one resumes from its checkpoint in ``multirun/paper/``. The studies'
+time: ``run.py`` with the campaign's recipe (:func:`job_recipe`: learn_student's hike map,
+the teacher's reward recipe, ``--recipe``, and curriculum; from scratch; scored on all five
+categories, levels 0-4), the robot's shipped oracle teaching (read-only), the same
+``--frames`` and ``--eval-runs`` (the std of our cells is over those runs, as the paper's is
+over its 5); Hydra overrides after the options go to every job (e.g. the fast loop). Each
+finished job's record (config, benchmark, training log, and ``record.json``: frames,
+minutes, seed, commit, teacher and its hash, protocol, recipe) is copied to
+``experiments/results/paper_jobs/<robot>-<algo>-seed<seed>/`` and committed, so a sweep
+longer than a session resumes on a fresh clone: a recorded job is skipped (one recorded
+with other settings is refused), a killed one resumes from its checkpoint in
+``multirun/paper/``. The studies'
 tables are then written from the records. Without ``--run`` the tables are read from
 ``experiments/results/<study>/table.csv``; a study not run yet is listed with the command
 that runs it.
@@ -30,6 +33,8 @@ match where both separate the methods. Writes experiments/results/paper_tables.m
 from __future__ import annotations
 
 import argparse
+import csv
+import hashlib
 import json
 import shutil
 import subprocess
@@ -40,7 +45,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "experiments"))
 
-from learn_hike import HIKE  # noqa: E402
+from campaign import git_commit  # noqa: E402
+from learn_hike import RECIPES  # noqa: E402
 
 from legoh.eval.metrics import HIGHER_IS_BETTER, column_title  # noqa: E402
 from legoh.eval.paper import PAPER_TABLES, PaperTable, ordering  # noqa: E402
@@ -50,13 +56,22 @@ RESULTS = ROOT / "experiments" / "results"
 JOBS = RESULTS / "paper_jobs"  # each job's record, committed: a later session skips the job
 RUNS = ROOT / "multirun" / "paper"  # the jobs' run folders (checkpoints: not committed)
 RECORD = (".hydra/config.yaml", "benchmark.csv", "benchmark_runs.csv", "train.csv")
-# Every job trains as learn_student's campaign does (the hike map, the hike reward preset and
-# its curriculum) and is scored on all five categories, levels 0-4; no video
-# the camera the committed jobs learned with (the default became 55 degrees after them):
-# a new seed or table joins them through the same pixels; every job from scratch (init=none:
-# the default would start LEGO-H from the shipped student and the baselines from nothing)
-RECIPE = ["trail=hike", "env.reward_preset=hike", *HIKE, "eval.levels=[0,1,2,3,4]",
-          "video=false", "robot.camera.pitch_deg=30", "init=none"]
+# Every job trains as learn_student's campaign does (the hike map, its teacher's reward
+# recipe and curriculum) and is scored on all five categories, levels 0-4; no video.
+# ``--recipe``: v2 (the shipped oracles' since 2026-12-06, the default camera) or v1 (the
+# committed 600k-frame jobs': the v1 teachers, the 30-degree camera they learned with).
+# Every job from scratch (init=none: the default would start LEGO-H from the shipped
+# student and the baselines from nothing)
+CAMERA = {"v1": ["robot.camera.pitch_deg=30"], "v2": []}
+
+
+def job_recipe(recipe: str) -> list[str]:
+    """The overrides every job of a sweep under ``recipe`` trains and is scored with."""
+    preset, extra = RECIPES[recipe]
+    return ["trail=hike", f"env.reward_preset={preset}", *extra, "eval.levels=[0,1,2,3,4]",
+            "video=false", *CAMERA[recipe], "init=none"]
+
+
 NAN = (float("nan"), float("nan"))
 
 
@@ -150,28 +165,30 @@ def planned_jobs(specs, seeds: list[int]) -> dict[str, tuple[str, str, int]]:
 
 
 def run_job(name: str, robot: str, algo: str, seed: int, frames: int, eval_runs: int,
-            overrides: list[str], log: Path | None = None) -> Path:
+            overrides: list[str], log: Path | None = None, recipe: str = "v2") -> Path:
     """Train and benchmark one job (``run.py`` in ``multirun/paper/<job>``, resumed from its
-    checkpoint if a killed run left one), then copy its record to ``paper_jobs/<job>``. A
-    job recorded already is skipped, unless its frames or evaluation runs differ: refused.
-    ``log``: the job's console goes to that file (parallel jobs), else to this one."""
+    checkpoint if a killed run left one), then copy its record to ``paper_jobs/<job>`` with
+    ``record.json`` (:func:`write_record`). A job recorded already is skipped, unless it was
+    run with other frames, evaluation runs or recipe: refused, naming them (a record without
+    ``record.json`` predates it: recipe v1). ``log``: the job's console goes to that file
+    (parallel jobs), else to this one."""
     record = JOBS / name
     if (record / "benchmark.csv").is_file():
-        from omegaconf import OmegaConf
-
-        cfg = OmegaConf.load(record / ".hydra" / "config.yaml")
-        done = (int(cfg.algo.total_frames), int(cfg.eval.runs))
-        if done != (frames, eval_runs):
-            raise SystemExit(f"[paper_tables] {record} was run with algo.total_frames="
-                             f"{done[0]}, eval.runs={done[1]}, not --frames {frames} "
-                             f"--eval-runs {eval_runs}: remove it, or pass its settings")
+        want = {"algo.total_frames": frames, "eval.runs": eval_runs, "recipe": recipe}
+        done = recorded_settings(record)
+        if done != want:
+            raise SystemExit(
+                f"[paper_tables] {record} was run with "
+                + ", ".join(f"{k}={v}" for k, v in done.items()) + "; this sweep asks "
+                + ", ".join(f"{k}={v}" for k, v in want.items())
+                + ": move the record aside (git mv) or pass its settings")
         print(f"[paper_tables] {name}: recorded already ({record})", flush=True)
         return record
     out = RUNS / name
     if not (out / "benchmark.csv").is_file():
         cmd = [sys.executable, str(ROOT / "run.py"), f"robot={robot}", f"algo={algo}",
-               f"seed={seed}", *RECIPE, f"algo.total_frames={frames}", f"eval.runs={eval_runs}",
-               *overrides, f"hydra.run.dir={out}"]
+               f"seed={seed}", *job_recipe(recipe), f"algo.total_frames={frames}",
+               f"eval.runs={eval_runs}", *overrides, f"hydra.run.dir={out}"]
         checkpoint = out / f"{algo}.pt"
         if checkpoint.is_file():
             cmd.append(f"resume={checkpoint}")
@@ -188,11 +205,51 @@ def run_job(name: str, robot: str, algo: str, seed: int, frames: int, eval_runs:
         if (out / rel).is_file():
             (record / rel).parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(out / rel, record / rel)
+    write_record(record, out / f"{algo}.pt", recipe)
     return record
 
 
+def recorded_settings(record: Path) -> dict:
+    """A recorded job's frames, evaluation runs and recipe (``record.json``'s; v1 without
+    one: those jobs predate it)."""
+    from omegaconf import OmegaConf
+
+    cfg = OmegaConf.load(record / ".hydra" / "config.yaml")
+    info = record / "record.json"
+    recipe = json.loads(info.read_text())["recipe"] if info.is_file() else "v1"
+    return {"algo.total_frames": int(cfg.algo.total_frames), "eval.runs": int(cfg.eval.runs),
+            "recipe": recipe}
+
+
+def write_record(record: Path, checkpoint: Path, recipe: str) -> Path:
+    """``record.json`` of a finished job: what a later session needs to trust it (frames,
+    training minutes from ``train.csv``, seed, commit, the teacher and its hash, the
+    benchmark protocol, the recipe)."""
+    from omegaconf import OmegaConf
+
+    from legoh.checkpoint import load_checkpoint
+    from legoh.eval.protocol import PROTOCOL
+
+    cfg = OmegaConf.load(record / ".hydra" / "config.yaml")
+    with open(record / "train.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    batch = int(cfg.algo.num_envs) * int(cfg.algo.steps_per_env)
+    minutes = sum(batch / float(r["frames_per_s"]) for r in rows) / 60
+    teacher = Path(load_checkpoint(checkpoint)["extra"]["oracle"])
+    info = {"job": record.name, "robot": str(cfg.robot.name), "algo": str(cfg.algo.name),
+            "seed": int(cfg.seed), "frames": int(cfg.algo.total_frames),
+            "minutes": round(minutes, 2), "commit": git_commit(), "recipe": recipe,
+            "teacher": str(teacher.relative_to(ROOT)) if teacher.is_relative_to(ROOT)
+            else str(teacher),
+            "teacher_sha": hashlib.sha256(teacher.read_bytes()).hexdigest()[:12],
+            "protocol": PROTOCOL, "eval": OmegaConf.to_container(cfg.eval, resolve=True)}
+    path = record / "record.json"
+    path.write_text(json.dumps(info, indent=2) + "\n", encoding="utf-8")
+    return path
+
+
 def run_jobs(jobs: dict[str, tuple[str, str, int]], frames: int, eval_runs: int,
-             overrides: list[str], parallel: int = 1) -> None:
+             overrides: list[str], parallel: int = 1, recipe: str = "v2") -> None:
     """Every job of ``jobs``, ``parallel`` at a time (each console in
     ``multirun/paper/<job>.log`` when more than one): two training processes on these
     2 cores made ~1.6 x the frames of one (docs/oracle.md), so a sweep of 8 jobs finishes
@@ -201,13 +258,14 @@ def run_jobs(jobs: dict[str, tuple[str, str, int]], frames: int, eval_runs: int,
         raise SystemExit(f"[paper_tables] --parallel {parallel}: valid is >= 1")
     if parallel == 1:
         for name, job in jobs.items():
-            run_job(name, *job, frames=frames, eval_runs=eval_runs, overrides=overrides)
+            run_job(name, *job, frames=frames, eval_runs=eval_runs, overrides=overrides,
+                    recipe=recipe)
         return
     from concurrent.futures import ThreadPoolExecutor
 
     with ThreadPoolExecutor(parallel) as pool:  # threads: each only waits on its process
         futures = [pool.submit(run_job, name, *job, frames=frames, eval_runs=eval_runs,
-                               overrides=overrides, log=RUNS / f"{name}.log")
+                               overrides=overrides, log=RUNS / f"{name}.log", recipe=recipe)
                    for name, job in jobs.items()]
         for future in futures:
             future.result()  # a job's failure raises here, after the pool drained
@@ -219,6 +277,9 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=None, help="stage-2 frames per job")
     parser.add_argument("--eval-runs", type=int, default=3)
     parser.add_argument("--seeds", default="0", help="training seeds of every study")
+    parser.add_argument("--recipe", choices=sorted(RECIPES), default="v2",
+                        help="the teachers' hiking recipe (learn_hike --recipe): v2, the "
+                             "shipped oracles'; v1, the committed 600k-frame jobs'")
     parser.add_argument("--parallel", type=int, default=1,
                         help="jobs at once (2 on a 2-core machine: ~1.6x the frames)")
     parser.add_argument("--tables", nargs="+", default=[t.name for t in PAPER_TABLES],
@@ -232,7 +293,7 @@ def main() -> None:
             parser.error("--run needs --frames (the same stage-2 frames for every job)")
         seeds = [int(x) for x in args.seeds.split(",")]
         run_jobs(planned_jobs(specs, seeds), args.frames, args.eval_runs, overrides,
-                 args.parallel)
+                 args.parallel, args.recipe)
         for spec in specs:
             study_table(JOBS, RESULTS / spec.study, spec.study,
                         select={**study_grid(spec.study),

@@ -28,7 +28,6 @@ import argparse
 import csv
 import json
 import os
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
@@ -38,6 +37,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 import torch  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from campaign import git_commit  # noqa: E402
 from learn_walk import compose_run  # noqa: E402
 
 from legoh.checkpoint import save_checkpoint  # noqa: E402
@@ -199,8 +199,7 @@ def trained_by(run: Path) -> str:
             rows = list(csv.DictReader(f))
         if rows and rows[-1]["commit"] not in ("", "unknown", "unrecorded"):
             return rows[-1]["commit"]
-    return subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
-                          text=True).stdout.strip()
+    return git_commit()
 
 
 def write_readme() -> None:

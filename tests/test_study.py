@@ -177,12 +177,14 @@ def test_paper_jobs_run_once_and_each_study_reads_its_own(tmp_path, monkeypatch)
                                                                           "unified_ct"}
     monkeypatch.setattr(paper_tables, "JOBS", records)
     monkeypatch.setattr(paper_tables, "RUNS", tmp_path / "runs")  # nothing may run there
+    # records without record.json predate it: recipe v1
     assert paper_tables.run_job("g1-unified-seed0", "g1", "unified", 0, frames=1000,
-                                eval_runs=2, overrides=[]) == records / "g1-unified-seed0"
+                                eval_runs=2, overrides=[], recipe="v1") == (
+        records / "g1-unified-seed0")
     assert not (tmp_path / "runs").exists()
     with pytest.raises(SystemExit, match="algo.total_frames=1000"):
         paper_tables.run_job("g1-unified-seed0", "g1", "unified", 0, frames=5000,
-                             eval_runs=2, overrides=[])
+                             eval_runs=2, overrides=[], recipe="v1")
 
 
 def test_paper_tables_parallel_jobs_skip_records_and_raise_a_refused_one(tmp_path,
@@ -202,9 +204,59 @@ def test_paper_tables_parallel_jobs_skip_records_and_raise_a_refused_one(tmp_pat
         write_job(records / name, algo, seed, {"overall": per_run([10.0, 12.0])}, robot=robot)
     monkeypatch.setattr(paper_tables, "JOBS", records)
     monkeypatch.setattr(paper_tables, "RUNS", tmp_path / "runs")  # nothing may run there
-    paper_tables.run_jobs(jobs, frames=1000, eval_runs=2, overrides=[], parallel=2)
+    paper_tables.run_jobs(jobs, frames=1000, eval_runs=2, overrides=[], parallel=2,
+                          recipe="v1")
     assert not (tmp_path / "runs").exists()
     with pytest.raises(SystemExit, match="algo.total_frames=1000"):
-        paper_tables.run_jobs(jobs, frames=5000, eval_runs=2, overrides=[], parallel=2)
+        paper_tables.run_jobs(jobs, frames=5000, eval_runs=2, overrides=[], parallel=2,
+                              recipe="v1")
     with pytest.raises(SystemExit, match="--parallel 0: valid is >= 1"):
         paper_tables.run_jobs(jobs, frames=1000, eval_runs=2, overrides=[], parallel=0)
+
+
+def test_a_paper_job_records_its_teacher_and_recipe_and_another_recipe_is_refused(
+        tmp_path, monkeypatch) -> None:
+    """Each finished job writes record.json (frames, minutes, seed, commit, teacher and its
+    hash, protocol, recipe); a recorded job is skipped only under the same recipe: a v1
+    record (600k frames, the v1 teachers) must not pass for a v2 sweep's job. Failed
+    before: no record.json, and a job of the same frames was skipped whatever its recipe."""
+    import hashlib
+    import json
+    import sys
+    from pathlib import Path
+
+    from legoh.checkpoint import save_checkpoint
+    from legoh.eval.protocol import PROTOCOL
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments"))
+    import paper_tables
+
+    assert "+experiment=recipe_v1" in paper_tables.job_recipe("v1")
+    assert "env.reward_preset=leap" in paper_tables.job_recipe("v2")
+    assert all("init=none" in paper_tables.job_recipe(r) for r in ("v1", "v2"))
+    records, runs = tmp_path / "paper_jobs", tmp_path / "runs"
+    out = runs / "h1-unified-seed0"  # a finished run folder, as run.py leaves it
+    write_job(out, "unified", 0, {"overall": per_run([10.0, 12.0])})
+    cfg = OmegaConf.load(out / ".hydra" / "config.yaml")
+    cfg.algo.num_envs, cfg.algo.steps_per_env = 4, 25  # 100 frames an iteration
+    (out / ".hydra" / "config.yaml").write_text(OmegaConf.to_yaml(cfg))
+    (out / "train.csv").write_text("iteration,frames_per_s\n1,50\n2,100\n")  # 2 s + 1 s
+    teacher = tmp_path / "teacher.pt"
+    teacher.write_bytes(b"the teacher's bytes")
+    save_checkpoint(out / "unified.pt", {"format": 1, "models": {}, "iteration": 2,
+                                         "robot": "h1", "layout": {},
+                                         "extra": {"oracle": str(teacher)}})
+    monkeypatch.setattr(paper_tables, "JOBS", records)
+    monkeypatch.setattr(paper_tables, "RUNS", runs)
+    record = paper_tables.run_job("h1-unified-seed0", "h1", "unified", 0, frames=1000,
+                                  eval_runs=2, overrides=[], recipe="v2")
+    info = json.loads((record / "record.json").read_text())
+    assert info["recipe"] == "v2" and info["frames"] == 1000 and info["seed"] == 0
+    assert info["minutes"] == round(3 / 60, 2) and info["protocol"] == PROTOCOL
+    assert info["teacher_sha"] == hashlib.sha256(b"the teacher's bytes").hexdigest()[:12]
+    assert info["commit"]
+    assert paper_tables.run_job("h1-unified-seed0", "h1", "unified", 0, frames=1000,
+                                eval_runs=2, overrides=[]) == record  # recorded: skipped
+    with pytest.raises(SystemExit, match="recipe=v2; this sweep asks .*recipe=v1"):
+        paper_tables.run_job("h1-unified-seed0", "h1", "unified", 0, frames=1000,
+                             eval_runs=2, overrides=[], recipe="v1")
