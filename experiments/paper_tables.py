@@ -48,8 +48,8 @@ sys.path.insert(0, str(ROOT / "experiments"))
 from campaign import git_commit  # noqa: E402
 from learn_hike import RECIPES  # noqa: E402
 
-from legoh.eval.metrics import HIGHER_IS_BETTER, column_title  # noqa: E402
-from legoh.eval.paper import PAPER_TABLES, PaperTable, ordering  # noqa: E402
+from legoh.eval.metrics import HIGHER_IS_BETTER, METRICS, column_title  # noqa: E402
+from legoh.eval.paper import MAIN, PAPER_TABLES, PaperTable, ordering  # noqa: E402
 from legoh.eval.study import read_study_csv, study_grid, study_table  # noqa: E402
 
 RESULTS = ROOT / "experiments" / "results"
@@ -151,17 +151,62 @@ def summary_line(counts: dict[str, int]) -> str:
             f"{counts.get('paper ties', 0)}; {counts.get('–', 0)} without a value.")
 
 
-def planned_jobs(specs, seeds: list[int]) -> dict[str, tuple[str, str, int]]:
-    """``{job: (robot, algo, seed)}``: every job the studies of ``specs`` compare, each once
-    (LEGO-H on H1 is in four studies, EP-H in two)."""
+def planned_jobs(specs, seeds: list[int], main: bool = False
+                 ) -> dict[str, tuple[str, str, int]]:
+    """``{job: (robot, algo, seed)}``: every job the studies of ``specs`` (and with ``main``
+    the main comparison's, :data:`MAIN`) compare, each once (LEGO-H on H1 is in five
+    studies, EP-H in three)."""
+    grids = [study_grid(spec.study) for spec in specs]
+    if main:
+        grids.append(main_grid())
     jobs = {}
-    for spec in specs:
-        grid = study_grid(spec.study)
+    for grid in grids:
         for robot in grid["robot.name"]:
             for algo in grid["algo.name"]:
                 for seed in seeds:
                     jobs.setdefault(f"{robot}-{algo}-seed{seed}", (robot, algo, seed))
     return jobs
+
+
+def main_grid() -> dict[str, list[str]]:
+    """The main comparison's jobs: H1, its four students (the ``benchmark`` sweep's oracle
+    job is stage 1: here the shipped oracle teaches every student)."""
+    return {"robot.name": ["h1"], "algo.name": list(MAIN.methods.values())}
+
+
+def main_section(frames: int | None, eval_runs: int) -> list[str]:
+    """The main comparison's page section: per category (overall first) each method's
+    published value (where we have one) beside ours, and our ordering of LEGO-H against
+    each baseline per metric."""
+    path = RESULTS / MAIN.study / "table.csv"
+    lines = [f"## {MAIN.title}", ""]
+    if not path.is_file():
+        return lines + [f"Not run yet: `python experiments/paper_tables.py --run --frames "
+                        f"{frames or 'F'} --eval-runs {eval_runs} --tables main`.", ""]
+    table = read_study_csv(path)
+    names = list(MAIN.methods)
+    lines += [f"Ours: `experiments/results/{MAIN.study}/` (its `table.md` says the frames, "
+              "seeds and evaluation runs). Published: Table 8's EP-H and RMA-B per category "
+              "(its own protocol), Table 4's LEGO-H overall; `–` where the paper's value is "
+              "not in our notes. Last column: our LEGO-H against each baseline (`>` LEGO-H "
+              "better, `<` worse, `=` within one std).", ""]
+    head = ["metric"] + [f"{who} {n}" for n in names for who in ("paper", "ours")] + [
+        "ours: LEGO-H vs " + " / ".join(names[1:])]
+    for category in ["overall", *[c for c in table if c != "overall"]]:
+        ours = {n: table.get(category, {}).get(MAIN.methods[n], {}) for n in names}
+        paper = MAIN.numbers.get(category, {})
+        lines += [f"**{category}**", "", "| " + " | ".join(head) + " |",
+                  "|" + "---|" * len(head)]
+        for metric in METRICS:  # ours has DW and FR too: no paper column
+            cells = [cell(c.get(n, {}).get(metric, NAN)) for n in names
+                     for c in (paper, ours)]
+            lead = ours[names[0]].get(metric, NAN)
+            orders = [ordering(lead, ours[n].get(metric, NAN), HIGHER_IS_BETTER[metric])
+                      for n in names[1:]]
+            lines.append(f"| {column_title(metric)} | " + " | ".join(cells)
+                         + f" | {' / '.join(orders)} |")
+        lines.append("")
+    return lines
 
 
 def run_job(name: str, robot: str, algo: str, seed: int, frames: int, eval_runs: int,
@@ -282,27 +327,29 @@ def main() -> None:
                              "shipped oracles'; v1, the committed 600k-frame jobs'")
     parser.add_argument("--parallel", type=int, default=1,
                         help="jobs at once (2 on a 2-core machine: ~1.6x the frames)")
-    parser.add_argument("--tables", nargs="+", default=[t.name for t in PAPER_TABLES],
-                        choices=[t.name for t in PAPER_TABLES],
-                        help="the tables whose studies --run runs (paper_tables.md always "
-                             "shows all five)")
+    names = [t.name for t in PAPER_TABLES] + ["main"]
+    parser.add_argument("--tables", nargs="+", default=names, choices=names,
+                        help="the tables whose studies --run runs (main: the main paper's "
+                             "comparison; paper_tables.md always shows all six)")
     args, overrides = parser.parse_known_args()
     specs = [t for t in PAPER_TABLES if t.name in args.tables]
     if args.run:
         if not args.frames:
             parser.error("--run needs --frames (the same stage-2 frames for every job)")
         seeds = [int(x) for x in args.seeds.split(",")]
-        run_jobs(planned_jobs(specs, seeds), args.frames, args.eval_runs, overrides,
-                 args.parallel, args.recipe)
-        for spec in specs:
-            study_table(JOBS, RESULTS / spec.study, spec.study,
-                        select={**study_grid(spec.study),
-                                "seed": [str(x) for x in seeds]})
+        main_too = "main" in args.tables
+        run_jobs(planned_jobs(specs, seeds, main_too), args.frames, args.eval_runs,
+                 overrides, args.parallel, args.recipe)
+        chosen = [(s.study, study_grid(s.study)) for s in specs]
+        for study, grid in chosen + ([(MAIN.study, main_grid())] if main_too else []):
+            study_table(JOBS, RESULTS / study, study,
+                        select={**grid, "seed": [str(x) for x in seeds]})
     lines = ["# The paper's study at CPU scale", "",
              "Written by `experiments/paper_tables.py` from the studies' tables. The paper's "
              "numbers come from full training (Isaac Gym, thousands of robots, the paper "
              "preset); ours from CPU-scale runs (the small TC-ViTs preset, the shipped "
              "oracle teaching), so compare orderings, not values.", ""]
+    lines += main_section(args.frames, args.eval_runs)
     for spec in PAPER_TABLES:  # every table: --tables picks the studies run, not the page
         lines += section(spec, args.frames, args.eval_runs)[0]
     out = RESULTS / "paper_tables.md"

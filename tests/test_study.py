@@ -260,3 +260,41 @@ def test_a_paper_job_records_its_teacher_and_recipe_and_another_recipe_is_refuse
     with pytest.raises(SystemExit, match="recipe=v2; this sweep asks .*recipe=v1"):
         paper_tables.run_job("h1-unified-seed0", "h1", "unified", 0, frames=1000,
                              eval_runs=2, overrides=[], recipe="v1")
+
+
+def test_the_main_comparison_sets_lego_h_beside_each_baseline_per_category(
+        tmp_path, monkeypatch) -> None:
+    """The main paper's comparison (issue 47): LEGO-H, RMA-H, RMA-B, EP-H on H1, per
+    category, the published values beside ours (Table 8's EP-H / RMA-B per category, Table
+    4's LEGO-H overall) and our ordering of LEGO-H against each baseline; its jobs join the
+    paper tables' (RMA-H the only new one)."""
+    import sys
+    from pathlib import Path
+
+    from legoh.eval.paper import MAIN, PAPER_TABLES
+    from legoh.eval.study import study_table
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments"))
+    import paper_tables
+
+    tables = paper_tables.planned_jobs(PAPER_TABLES, [0, 1])
+    both = paper_tables.planned_jobs(PAPER_TABLES, [0, 1], main=True)
+    assert sorted(set(both) - set(tables)) == ["h1-rma_h-seed0", "h1-rma_h-seed1"]
+    monkeypatch.setattr(paper_tables, "RESULTS", tmp_path)
+    assert "Not run yet" in "\n".join(paper_tables.main_section(1000, 3))
+    jobs = tmp_path / "jobs"
+    for algo, sr in (("unified", 50.0), ("rma_h", 30.0), ("rma_b", 49.0), ("ep_h", 70.0),
+                     ("unified_ct", 99.0)):
+        for seed in (0, 1):
+            write_job(jobs / f"h1-{algo}-seed{seed}", algo, seed,
+                      {"overall": per_run([sr, sr + 2.0]), "gap": per_run([sr, sr])})
+    study_table(jobs, tmp_path / MAIN.study, MAIN.study,
+                select={**paper_tables.main_grid(), "seed": ["0", "1"]})
+    page = "\n".join(paper_tables.main_section(1000, 3))
+    assert "unified_ct" not in page and "99.00" not in page  # only the four methods
+    overall = page.split("**overall**")[1].split("**gap**")[0]
+    sr = next(line for line in overall.splitlines() if line.startswith("| SR"))
+    assert "68.40 ± 1.34" in sr and sr.endswith("| > / = / < |")  # paper's LEGO-H
+    gap = page.split("**gap**")[1]
+    sr = next(line for line in gap.splitlines() if line.startswith("| SR"))
+    assert "18.13 ± 1.19" in sr and "39.93 ± 1.55" in sr  # Table 8's EP-H and RMA-B on Gap

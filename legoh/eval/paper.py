@@ -105,6 +105,28 @@ PAPER_TABLES = (
 )
 
 
+@dataclass(frozen=True)
+class MainComparison:
+    """The main paper's comparison: LEGO-H beside the baselines per trail category.
+
+    ``methods`` maps the paper's name to our ``algo.name``; ``numbers`` holds the published
+    values we have (``{category | "overall": {method: {metric: (mean, std)}}}``): Table 8's
+    EP-H and RMA-B per category (its own protocol) and Table 4's LEGO-H overall (the main
+    protocol); the main paper's own table is not in our notes, so the rest are ours alone.
+    """
+
+    title: str
+    study: str
+    methods: dict[str, str]
+    numbers: dict
+
+
+MAIN = MainComparison(
+    "The main paper's comparison: LEGO-H beside RMA-H, RMA-B and EP-H per trail category",
+    "benchmark", {"LEGO-H": "unified", "RMA-H": "rma_h", "RMA-B": "rma_b", "EP-H": "ep_h"},
+    {"overall": {"LEGO-H": TABLE4["h1"]}, **{c: dict(m) for c, m in TABLE8.items()}})
+
+
 def ordering(a: tuple[float, float], b: tuple[float, float], higher_is_better: bool) -> str:
     """Which of two (mean, std) cells is better: ``">"`` (a), ``"<"`` (b), or ``"="`` when
     the means lie within the larger std of each other (no ordering to compare); ``"?"``
