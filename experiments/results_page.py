@@ -5,6 +5,7 @@ shipped hiker zero-shot on a long "hill" trail.
     python experiments/results_page.py            # the page, from what is committed (seconds)
     python experiments/results_page.py --hill     # first film + benchmark the shipped H1 oracle
                                                   # on a hill trail (experiments/results/hill/)
+    python experiments/results_page.py --hill --stage unified   # its student (hill/unified/)
     python experiments/results_page.py --demo forest   # first the README's GIF (docs/img/)
 
 Nothing on the page is typed by hand: every number is read from a file under
@@ -219,22 +220,31 @@ def films_section() -> list[str]:
 
 
 def hill_section() -> list[str]:
-    summary = HILL / "summary.json"
-    if not summary.exists():
+    """The shipped oracle on the hill trail, and beside it each shipped student filmed there
+    (``--hill --stage unified``)."""
+    summaries = [d / "summary.json" for d in (HILL, *sorted(p for p in HILL.glob("*")
+                                                             if p.is_dir()))]
+    summaries = [json.loads(p.read_text()) for p in summaries if p.exists()]
+    if not summaries:
         return []
-    s = json.loads(summary.read_text())
-    lines = ["## Zero-shot on a hill trail", "",
-             f"The shipped {s['robot'].upper()} oracle on `trail=hill` (level {s['level']}: "
-             f"{s['length_m']:.0f} m of chained RandomMix, Ditch, Hurdle, Gap and Forest over "
-             "a hillside, never seen in training), from the trail start, "
-             f"{s['seconds']:.0f} s. The filmed robot walked {s['film_distance_m']:.1f} m "
-             f"toward the terminus and {'fell' if s['film_fell'] else 'did not fall'}; "
-             f"over {s['robots']} robots: {s['mean_distance_m']:.1f} m on average, "
-             f"{s['fell_share'] * 100:.0f} % fell, {s['reached_share'] * 100:.0f} % reached "
-             f"the terminus. Written by `python experiments/results_page.py --hill`.", "",
-             f"[video]({rel(HILL / 'hill.mp4')})", "",
-             f"![hill filmstrip]({rel(HILL / 'hill_filmstrip.png')})", "",
-             f"![hill trajectories]({rel(HILL / 'trajectories.png')})", ""]
+    lines = ["## Zero-shot on a hill trail", ""]
+    for s in summaries:
+        stage = s.get("stage", "oracle")
+        out = hill_dir(stage)
+        who = "oracle" if stage == "oracle" else f"{stage} student (from depth)"
+        lines += [f"The shipped {s['robot'].upper()} {who} on `trail=hill` (level "
+                  f"{s['level']}: {s['length_m']:.0f} m of chained RandomMix, Ditch, Hurdle, "
+                  "Gap and Forest over a hillside, never seen in training), from the trail "
+                  f"start, {s['seconds']:.0f} s. The filmed robot walked "
+                  f"{s['film_distance_m']:.1f} m toward the terminus and "
+                  f"{'fell' if s['film_fell'] else 'did not fall'}; over {s['robots']} "
+                  f"robots: {s['mean_distance_m']:.1f} m on average, "
+                  f"{s['fell_share'] * 100:.0f} % fell, {s['reached_share'] * 100:.0f} % "
+                  "reached the terminus. Written by `python experiments/results_page.py "
+                  f"--hill{'' if stage == 'oracle' else ' --stage ' + stage}`.", "",
+                  f"[video]({rel(out / 'hill.mp4')})", "",
+                  f"![hill filmstrip]({rel(out / 'hill_filmstrip.png')})", "",
+                  f"![hill trajectories]({rel(out / 'trajectories.png')})", ""]
     return lines
 
 
@@ -269,32 +279,43 @@ def write_page() -> Path:
     return PAGE
 
 
-def film_hill(robot: str, level: int, robots: int, seconds: float) -> None:
-    """The shipped oracle from the start of a hill trail: a video of robot 0, and every
+def hill_dir(stage: str) -> Path:
+    """Where the hill trail's film and benchmark of a shipped policy go: ``hill/`` for the
+    oracle (as first committed), ``hill/<stage>/`` for a student (``unified``, ...)."""
+    return HILL if stage == "oracle" else HILL / stage
+
+
+def film_hill(robot: str, level: int, robots: int, seconds: float,
+              stage: str = "oracle") -> None:
+    """The shipped policy of ``stage`` (``oracle``, or a student: ``unified``) from the start
+    of a hill trail: a video of robot 0 (a student's with its depth view beside), and every
     robot's path over the map (the benchmark's trajectories picture)."""
     from legoh.config.compose import compose_config
     from legoh.eval.benchmark import evaluate, make_eval_env
-    from legoh.eval.cli import for_checkpoint
+    from legoh.eval.cli import build_actor, for_checkpoint
     from legoh.play import render_policy_video
-    from legoh.policies.oracle import load_oracle_actor
 
     cfg = compose_config(f"robot={robot}", "trail=hill", f"eval.robots={robots}",
                          "eval.runs=1", "eval.variants=1", f"eval.levels=[{level}]",
-                         f"eval.seconds={seconds}", "eval.spawn_remaining=null")
-    cfg, _ = for_checkpoint(cfg, "pretrained")  # its own feet
+                         f"eval.seconds={seconds}", "eval.spawn_remaining=null",
+                         *([] if stage == "oracle" else [f"algo={stage}"]))
+    cfg, _ = for_checkpoint(cfg, "pretrained")  # its own feet (and a student's camera)
     env = make_eval_env(cfg)
-    actor = load_oracle_actor(cfg, "pretrained", env)
     length = float(env.trails_t.length.max())  # m of expert path, start to terminus
     env.close()
-    HILL.mkdir(parents=True, exist_ok=True)
-    film = render_policy_video(cfg, actor, HILL / "hill.mp4", level=level)
-    result = evaluate(cfg, actor, HILL, label=f"{robot}_oracle on hill")
+    policy, env_fn = build_actor(cfg, "pretrained")  # what mode=play and mode=eval load
+    actor = policy.policy if env_fn is not None else policy
+    out = hill_dir(stage)
+    out.mkdir(parents=True, exist_ok=True)
+    film = render_policy_video(cfg, actor, out / "hill.mp4", level=level,
+                               student=policy if env_fn is not None else None)
+    result = evaluate(cfg, actor, out, label=f"{robot}_{stage} on hill", env_fn=env_fn)
     overall = result["rows"]["overall"]
-    summary = {"robot": robot, "level": level, "seconds": seconds, "robots": robots,
-               "length_m": length, "film_distance_m": film["distance"],
+    summary = {"robot": robot, "stage": stage, "level": level, "seconds": seconds,
+               "robots": robots, "length_m": length, "film_distance_m": film["distance"],
                "film_fell": film["fell"], "mean_distance_m": overall["DW"][0],
                "fell_share": overall["FR"][0] / 100.0, "reached_share": overall["SR"][0] / 100.0}
-    (HILL / "summary.json").write_text(json.dumps(summary, indent=2))
+    (out / "summary.json").write_text(json.dumps(summary, indent=2))
     print(json.dumps(summary, indent=2))
 
 
@@ -335,10 +356,12 @@ def main() -> None:
     parser.add_argument("--robot", default="h1")
     parser.add_argument("--level", type=int, default=1, help="the hill trail's level")
     parser.add_argument("--robots", type=int, default=16)
+    parser.add_argument("--stage", default="oracle",
+                        help="--hill: the shipped policy, oracle or a student (unified)")
     parser.add_argument("--seconds", type=float, default=90.0)
     args = parser.parse_args()
     if args.hill:
-        film_hill(args.robot, args.level, args.robots, args.seconds)
+        film_hill(args.robot, args.level, args.robots, args.seconds, args.stage)
     if args.demo:
         film_demo(args.robot, args.demo)
     print(f"wrote {write_page()}")

@@ -30,3 +30,26 @@ def test_averaged_snapshots_are_set_beside_the_snapshots_they_span(tmp_path, mon
     row = next(line for line in lines if "h1-unified-s0" in line)
     assert row.startswith("| `h1-unified-s0` | 3 | 6-18 | 55 (30) |")
     assert row.count("55 (30)") == len(cols)
+
+
+def test_the_hill_section_sets_each_filmed_student_beside_the_oracle(tmp_path, monkeypatch):
+    """``--hill --stage unified`` writes hill/unified/summary.json; the page shows the
+    oracle's hill walk and the student's, each with its own film and numbers. Failed
+    before: only the oracle's (hill/summary.json) was read."""
+    import json
+
+    import results_page
+
+    hill = tmp_path / "hill"
+    monkeypatch.setattr(results_page, "HILL", hill)
+    base = {"robot": "h1", "level": 1, "seconds": 90.0, "robots": 16, "length_m": 64.0,
+            "film_fell": False, "fell_share": 0.25, "reached_share": 0.38}
+    (hill / "unified").mkdir(parents=True)
+    (hill / "summary.json").write_text(json.dumps(
+        {**base, "film_distance_m": 9.1, "mean_distance_m": 40.0}))  # no stage: the oracle
+    (hill / "unified" / "summary.json").write_text(json.dumps(
+        {**base, "stage": "unified", "film_distance_m": 5.5, "mean_distance_m": 21.5}))
+    page = "\n".join(results_page.hill_section())
+    assert "The shipped H1 oracle on `trail=hill`" in page and "40.0 m on average" in page
+    assert "The shipped H1 unified student (from depth)" in page and "21.5 m on" in page
+    assert "--hill --stage unified" in page and "hill/unified/hill.mp4" in page
