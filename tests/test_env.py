@@ -54,12 +54,14 @@ EnvFactory = Callable[..., HikingEnv]
 
 @pytest.fixture
 def make(flat: tuple[DictConfig, Scene]) -> Iterator[EnvFactory]:
-    """``make(num_envs, seed=0, cfg=None, scene=None, **env_fields)``: a HikingEnv on the
-    shared flat scene unless told otherwise; every env made is closed after the test."""
+    """``make(num_envs, seed=0, cfg=None, scene=None, evaluation=False, **env_fields)``: a
+    HikingEnv on the shared flat scene unless told otherwise; every env made is closed
+    after the test."""
     made: list[HikingEnv] = []
 
     def factory(num_envs: int = 4, seed: int = 0, cfg: DictConfig | None = None,
-                scene: Scene | None = None, **env_fields: object) -> HikingEnv:
+                scene: Scene | None = None, evaluation: bool = False,
+                **env_fields: object) -> HikingEnv:
         if cfg is None:
             cfg, scene = flat
         env_cfg = OmegaConf.to_object(cfg.env)
@@ -68,7 +70,8 @@ def make(flat: tuple[DictConfig, Scene]) -> Iterator[EnvFactory]:
         for name, value in env_fields.items():
             setattr(env_cfg, name, value)
         env = HikingEnv(OmegaConf.to_object(cfg.robot), OmegaConf.to_object(cfg.trail),
-                        env_cfg, OmegaConf.to_object(cfg.sim), num_envs, seed=seed, scene=scene)
+                        env_cfg, OmegaConf.to_object(cfg.sim), num_envs, seed=seed, scene=scene,
+                        evaluation=evaluation)
         made.append(env)
         return env
 
@@ -346,7 +349,7 @@ def test_reach_radius_of_training_and_of_evaluation() -> None:
 
 
 def test_timeout_truncates(make: EnvFactory) -> None:
-    env = make(2, episode_length_s=0.1)  # 5 policy steps at 50 Hz
+    env = make(2, episode_length_s=0.1, stagger_timeouts=False)  # 5 policy steps at 50 Hz
     assert env.max_steps == 5
     td = env.reset()
     for step in range(1, 6):
@@ -354,6 +357,31 @@ def test_timeout_truncates(make: EnvFactory) -> None:
         assert flags(td, keys.TRUNCATED) == [step == 5] * 2, step
         assert flags(td, keys.TERMINATED) == [False, False]
     assert flags(td, keys.DONE) == [True, True]
+
+
+def test_first_time_outs_are_staggered_in_training_only(make: EnvFactory) -> None:
+    """env.stagger_timeouts: a training robot's first episode times out after a random
+    share of the episode, later ones after all of it, so resets spread out; an evaluation
+    env never staggers. Failed before: every first episode ran max_steps (all robots timed
+    out together, and after each start only falls could end an episode for 20 s)."""
+    for evaluation in (False, True):
+        env = make(64, episode_length_s=0.2, evaluation=evaluation)  # 10 policy steps
+        td = env.reset()
+        ends: list[list[tuple[int, bool]]] = [[] for _ in range(64)]
+        for step in range(1, 31):
+            out, td = env.step_and_maybe_reset(
+                td.set(keys.ACTION, torch.zeros(env.action_spec.shape)))
+            nxt = out["next"]
+            timed_out = (nxt[keys.TRUNCATED] & ~nxt[keys.TERMINATED]).squeeze(-1)
+            for i in nxt[keys.DONE].squeeze(-1).nonzero().squeeze(1).tolist():
+                ends[i].append((step, bool(timed_out[i])))
+        firsts = [e[0][0] for e in ends if e and e[0][1]]
+        seconds = [e[1][0] - e[0][0] for e in ends if len(e) > 1 and e[0][1] and e[1][1]]
+        assert len(firsts) > 40 and seconds and set(seconds) == {10}
+        if evaluation:
+            assert set(firsts) == {10}  # every robot its whole episode
+        else:
+            assert len(set(firsts)) >= 5 and min(firsts) < 10  # spread over the episode
 
 
 # --------------------------------------------------------------------------- failures

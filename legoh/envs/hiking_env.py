@@ -107,6 +107,10 @@ class HikingEnv(EnvBase):
         self.level = (torch.randint(0, top + 1, (n,), generator=self.gen, device=dev)
                       if c.curriculum.enabled else torch.zeros(n, dtype=torch.int64, device=dev))
         self.steps = torch.zeros(n, dtype=torch.int64, device=dev)
+        # policy steps until this episode times out; episodes_ended counts each robot's
+        # finished episodes (its first ones staggered: env.stagger_timeouts)
+        self.horizon = torch.full((n,), self.max_steps, dtype=torch.int64, device=dev)
+        self.episodes_ended = torch.zeros(n, dtype=torch.int64, device=dev)
         self.episode_metres = torch.zeros(n, dtype=dt, device=dev)  # keys.EPISODE_METRES
         self.spawned_at = torch.zeros(n, dtype=dt, device=dev)  # m of path behind the spawn
         # the last step's failures (falls): the randomisation gate counts them
@@ -174,6 +178,12 @@ class HikingEnv(EnvBase):
         """The reset events (curriculum, spawn, delay, command), then the stateful terms."""
         for event in events.RESET_EVENTS:
             event(self, ids)
+        self.episodes_ended[ids] += (self.steps[ids] > 0).long()
+        self.horizon[ids] = self.max_steps
+        if self.cfg.stagger_timeouts and not self.evaluation:
+            first = ids[self.episodes_ended[ids] == 0]
+            self.horizon[first] = torch.randint(1, self.max_steps + 1, (len(first),),
+                                                generator=self.gen, device=self.device)
         self.steps[ids] = 0
         self.episode_metres[ids] = 0.0
         for term in self.stateful:

@@ -67,8 +67,9 @@ def fell(env, s: StepState) -> torch.Tensor:
 
 
 def time_out(env, s: StepState) -> torch.Tensor:
-    """The episode ran its length."""
-    return env.steps >= env.max_steps
+    """The episode ran its length (``env.horizon``: ``max_steps``, shorter for a training
+    robot's first episode under ``env.stagger_timeouts``)."""
+    return env.steps >= env.horizon
 
 
 TERMINATIONS: dict[str, Termination] = {
