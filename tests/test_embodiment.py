@@ -24,8 +24,8 @@ def foot_geom_types(env) -> list[int]:
 
 
 @pytest.mark.parametrize(("robot", "algo", "feet"), [
-    ("h1", "oracle", FeetCollider.spheres),  # the recipe-v2 oracle (shipped 2026-12-06)
-    ("g1", "oracle", FeetCollider.source), ("h1", "unified", FeetCollider.source)])
+    ("h1", "oracle", FeetCollider.spheres),  # the recipe-v2 oracles (shipped 2026-12-06)
+    ("g1", "oracle", FeetCollider.spheres), ("h1", "unified", FeetCollider.source)])
 def test_committed_checkpoints_evaluate_on_their_own_feet(robot: str, algo: str,
                                                           feet: FeetCollider) -> None:
     cfg = compose_config(f"robot={robot}", f"algo={algo}", "trail=flat", "trail.variants=1",
