@@ -23,7 +23,7 @@ from legoh.objectives.ppo import make_ppo, ppo_update
 from legoh.policies.embodiment import with_checkpoint_body
 from legoh.policies.oracle import LEGACY_CRITIC, build_oracle, load_oracle_checkpoint
 from legoh.policies.pretrained import init_checkpoint
-from legoh.train.algorithm import Algorithm
+from legoh.train.algorithm import Algorithm, start_at_checkpoint_lr
 from legoh.train.collect import overlapped, policy_device
 from legoh.train.runner import OnPolicyRunner, Run, training_session
 
@@ -84,9 +84,7 @@ class OraclePPO(Algorithm):
         # a fresh Adam's first steps move every weight by about lr: at the configured lr
         # (1e-3) they undid a walker within 5 iterations (every episode a fall in < 1 s), so
         # PPO starts from the lr its adaptive schedule had reached
-        lr = state.get("optimizers", {}).get("ppo", {}).get("param_groups", [{}])[0].get("lr")
-        for group in self.optimizers["ppo"].param_groups:
-            group["lr"] = lr or group["lr"]
+        start_at_checkpoint_lr(self.optimizers["ppo"], state)
         return state
 
 

@@ -31,12 +31,13 @@ from legoh.policies.oracle import load_teacher
 from legoh.policies.pretrained import init_checkpoint
 from legoh.policies.student import (
     build_student,
+    load_student,
     make_student_env,
     read_student_checkpoint,
     state_shapes,
     student_env_overrides,
 )
-from legoh.train.algorithm import Algorithm
+from legoh.train.algorithm import Algorithm, start_at_checkpoint_lr
 from legoh.train.collect import overlapped, policy_device
 from legoh.train.dagger import TeacherMix, student_rows, teacher_share
 from legoh.train.prior import make_prior, pretrain_prior, train_prior
@@ -133,12 +134,8 @@ class StudentDistillation(Algorithm):
         critic stays this teacher's, the optimisers and the action prior start afresh: the
         prior models the teacher's actions, and the teacher may be another one. PPO starts
         at the learning rate the checkpoint's schedule reached, as an oracle's warm start."""
-        state = read_student_checkpoint(self.cfg, path, self.student)
-        for name, module in self.student.modules().items():
-            module.load_state_dict(state["models"][name])
-        lr = state.get("optimizers", {}).get("ppo", {}).get("param_groups", [{}])[0].get("lr")
-        for group in self.optimizers["ppo"].param_groups:
-            group["lr"] = lr or group["lr"]
+        state = load_student(self.cfg, path, self.student)
+        start_at_checkpoint_lr(self.optimizers["ppo"], state)
         print(f"[legoh] student weights from {path} (init=, iteration "
               f"{state.get('iteration', '?')}; its teacher {state['extra'].get('oracle')}); "
               f"the teacher now {self.teacher_path}; PPO at lr "
