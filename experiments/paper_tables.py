@@ -2,7 +2,8 @@
 
     python experiments/paper_tables.py                     # write paper_tables.md from the studies
     python experiments/paper_tables.py --run --frames 100000 --eval-runs 3 [--seeds 0]
-                                       [--parallel 2]
+                                       [--parallel 2] [--eval-robots 400] [--minutes 45]
+    python experiments/paper_tables.py --park   # before a session ends inside a job
 
 Each paper table is answered by one study of ours (``legoh.eval.paper.PAPER_TABLES``):
 Table 1 by ``ablation_temporal`` (GRU vs causal transformer), Table 2 by ``ablation_prior``
@@ -20,10 +21,11 @@ minutes, seed, commit, teacher and its hash, protocol, recipe) is copied to
 ``experiments/results/paper_jobs/<robot>-<algo>-seed<seed>/`` and committed, so a sweep
 longer than a session resumes on a fresh clone: a recorded job is skipped (one recorded
 with other settings is refused), a killed one resumes from its checkpoint in
-``multirun/paper/``. The studies'
-tables are then written from the records. Without ``--run`` the tables are read from
-``experiments/results/<study>/table.csv``; a study not run yet is listed with the command
-that runs it.
+``multirun/paper/``, or on a fresh clone from ``paper_jobs/<job>/unfinished/``, where
+``--park`` copies it for committing. ``--minutes`` starts no job past a session's training
+window. The studies' tables are then written from the records. Without ``--run`` the
+tables are read from ``experiments/results/<study>/table.csv``; a study not run yet is
+listed with the command that runs it.
 
 Per metric the two methods are ordered in the paper and in ours (``ordering``: better,
 worse, or a tie when the means lie within one std); "agree" says whether the orderings
@@ -39,6 +41,7 @@ import json
 import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -55,6 +58,7 @@ from legoh.eval.study import read_study_csv, study_grid, study_table  # noqa: E4
 RESULTS = ROOT / "experiments" / "results"
 JOBS = RESULTS / "paper_jobs"  # each job's record, committed: a later session skips the job
 RUNS = ROOT / "multirun" / "paper"  # the jobs' run folders (checkpoints: not committed)
+UNFINISHED = "unfinished"  # paper_jobs/<job>/unfinished/: a parked job (park), committed
 RECORD = (".hydra/config.yaml", "benchmark.csv", "benchmark_runs.csv", "train.csv")
 # Every job trains as learn_student's campaign does (the hike map, its teacher's reward
 # recipe and curriculum) and is scored on all five categories, levels 0-4; no video.
@@ -210,17 +214,24 @@ def main_section(frames: int | None, eval_runs: int) -> list[str]:
 
 
 def run_job(name: str, robot: str, algo: str, seed: int, frames: int, eval_runs: int,
-            overrides: list[str], log: Path | None = None, recipe: str = "v2") -> Path:
+            overrides: list[str], log: Path | None = None, recipe: str = "v2",
+            eval_robots: int | None = None, deadline: float | None = None) -> Path | None:
     """Train and benchmark one job (``run.py`` in ``multirun/paper/<job>``, resumed from its
-    checkpoint if a killed run left one), then copy its record to ``paper_jobs/<job>`` with
+    checkpoint if a killed run left one there or :func:`park` left one in
+    ``paper_jobs/<job>/unfinished/``), then copy its record to ``paper_jobs/<job>`` with
     ``record.json`` (:func:`write_record`). A job recorded already is skipped, unless it was
-    run with other frames, evaluation runs or recipe: refused, naming them (a record without
-    ``record.json`` predates it: recipe v1). ``log``: the job's console goes to that file
-    (parallel jobs), else to this one."""
+    run with other frames, evaluation runs or robots (``eval_robots``; None: not checked)
+    or recipe: refused, naming them (a record without ``record.json`` predates it: recipe
+    v1). A job not finished yet starts only before ``deadline`` (``time.time()``; None: any
+    time): None is returned for one left for a later session. ``log``: the job's console
+    goes to that file (parallel jobs), else to this one."""
     record = JOBS / name
     if (record / "benchmark.csv").is_file():
         want = {"algo.total_frames": frames, "eval.runs": eval_runs, "recipe": recipe}
-        done = recorded_settings(record)
+        if eval_robots is not None:
+            want["eval.robots"] = eval_robots
+        recorded = recorded_settings(record)
+        done = {k: recorded[k] for k in want}
         if done != want:
             raise SystemExit(
                 f"[paper_tables] {record} was run with "
@@ -231,9 +242,15 @@ def run_job(name: str, robot: str, algo: str, seed: int, frames: int, eval_runs:
         return record
     out = RUNS / name
     if not (out / "benchmark.csv").is_file():
+        if deadline is not None and time.time() > deadline:
+            print(f"[paper_tables] {name}: not started, --minutes are spent (a later "
+                  "session runs it)", flush=True)
+            return None
+        unpark(record / UNFINISHED, out, algo)
+        robots = [] if eval_robots is None else [f"eval.robots={eval_robots}"]
         cmd = [sys.executable, str(ROOT / "run.py"), f"robot={robot}", f"algo={algo}",
                f"seed={seed}", *job_recipe(recipe), f"algo.total_frames={frames}",
-               f"eval.runs={eval_runs}", *overrides, f"hydra.run.dir={out}"]
+               f"eval.runs={eval_runs}", *robots, *overrides, f"hydra.run.dir={out}"]
         checkpoint = out / f"{algo}.pt"
         if checkpoint.is_file():
             cmd.append(f"resume={checkpoint}")
@@ -251,19 +268,61 @@ def run_job(name: str, robot: str, algo: str, seed: int, frames: int, eval_runs:
             (record / rel).parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(out / rel, record / rel)
     write_record(record, out / f"{algo}.pt", recipe)
+    shutil.rmtree(record / UNFINISHED, ignore_errors=True)  # the finished record replaces it
     return record
 
 
+# what a killed job needs to resume on a fresh clone: its checkpoint, the training log the
+# resumed run appends to, and the config it ran with
+PARKED = ("train.csv", ".hydra/config.yaml")
+
+
+def park(runs: Path | None = None, jobs: Path | None = None) -> list[Path]:
+    """Each unfinished job of ``runs`` (``multirun/paper/``: a checkpoint, no benchmark yet)
+    copied to ``jobs/<job>/unfinished/`` (``paper_jobs/``): a session that ends inside a
+    job commits that folder (``git add -f``: results' ``*.pt`` are ignored) and the next
+    session's ``--run`` resumes the job from it (:func:`unpark`) instead of from scratch.
+    Returns the folders written."""
+    runs, jobs = runs or RUNS, jobs or JOBS
+    from omegaconf import OmegaConf
+
+    parked = []
+    for out in sorted(p for p in runs.glob("*") if (p / ".hydra" / "config.yaml").is_file()):
+        algo = OmegaConf.load(out / ".hydra" / "config.yaml").algo.name
+        if (out / "benchmark.csv").is_file() or not (out / f"{algo}.pt").is_file():
+            continue
+        dest = jobs / out.name / UNFINISHED
+        for rel in (f"{algo}.pt", *PARKED):
+            if (out / rel).is_file():
+                (dest / rel).parent.mkdir(parents=True, exist_ok=True)
+                shutil.copy2(out / rel, dest / rel)
+        parked.append(dest)
+        print(f"[paper_tables] {out.name}: parked in {dest} (commit it: git add -f {dest})")
+    return parked
+
+
+def unpark(parked: Path, out: Path, algo: str) -> None:
+    """A parked job (:func:`park`) back into its run folder ``out``, unless ``out`` holds a
+    checkpoint of its own (a killed run of this session: newer)."""
+    if (out / f"{algo}.pt").is_file() or not (parked / f"{algo}.pt").is_file():
+        return
+    for rel in (f"{algo}.pt", *PARKED):
+        if (parked / rel).is_file():
+            (out / rel).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(parked / rel, out / rel)
+    print(f"[paper_tables] {out.name}: resumes from {parked}", flush=True)
+
+
 def recorded_settings(record: Path) -> dict:
-    """A recorded job's frames, evaluation runs and recipe (``record.json``'s; v1 without
-    one: those jobs predate it)."""
+    """A recorded job's frames, evaluation runs and robots, and recipe (``record.json``'s;
+    v1 without one: those jobs predate it)."""
     from omegaconf import OmegaConf
 
     cfg = OmegaConf.load(record / ".hydra" / "config.yaml")
     info = record / "record.json"
     recipe = json.loads(info.read_text())["recipe"] if info.is_file() else "v1"
     return {"algo.total_frames": int(cfg.algo.total_frames), "eval.runs": int(cfg.eval.runs),
-            "recipe": recipe}
+            "eval.robots": OmegaConf.select(cfg, "eval.robots"), "recipe": recipe}
 
 
 def write_record(record: Path, checkpoint: Path, recipe: str) -> Path:
@@ -294,23 +353,28 @@ def write_record(record: Path, checkpoint: Path, recipe: str) -> Path:
 
 
 def run_jobs(jobs: dict[str, tuple[str, str, int]], frames: int, eval_runs: int,
-             overrides: list[str], parallel: int = 1, recipe: str = "v2") -> None:
+             overrides: list[str], parallel: int = 1, recipe: str = "v2",
+             eval_robots: int | None = None, minutes: float | None = None) -> None:
     """Every job of ``jobs``, ``parallel`` at a time (each console in
     ``multirun/paper/<job>.log`` when more than one): two training processes on these
     2 cores made ~1.6 x the frames of one (docs/oracle.md), so a sweep of 8 jobs finishes
-    sooner two at a time. A failed job stops the sweep once the running ones end."""
+    sooner two at a time. A failed job stops the sweep once the running ones end. No job
+    starts after ``minutes`` (a session's training window; None: no limit)."""
     if parallel < 1:
         raise SystemExit(f"[paper_tables] --parallel {parallel}: valid is >= 1")
+    if minutes is not None and minutes <= 0:
+        raise SystemExit(f"[paper_tables] --minutes {minutes}: valid is > 0")
+    deadline = None if minutes is None else time.time() + 60 * minutes
+    each = {"frames": frames, "eval_runs": eval_runs, "overrides": overrides,
+            "recipe": recipe, "eval_robots": eval_robots, "deadline": deadline}
     if parallel == 1:
         for name, job in jobs.items():
-            run_job(name, *job, frames=frames, eval_runs=eval_runs, overrides=overrides,
-                    recipe=recipe)
+            run_job(name, *job, **each)
         return
     from concurrent.futures import ThreadPoolExecutor
 
     with ThreadPoolExecutor(parallel) as pool:  # threads: each only waits on its process
-        futures = [pool.submit(run_job, name, *job, frames=frames, eval_runs=eval_runs,
-                               overrides=overrides, log=RUNS / f"{name}.log", recipe=recipe)
+        futures = [pool.submit(run_job, name, *job, log=RUNS / f"{name}.log", **each)
                    for name, job in jobs.items()]
         for future in futures:
             future.result()  # a job's failure raises here, after the pool drained
@@ -321,6 +385,14 @@ def main() -> None:
     parser.add_argument("--run", action="store_true", help="run the studies first")
     parser.add_argument("--frames", type=int, default=None, help="stage-2 frames per job")
     parser.add_argument("--eval-runs", type=int, default=3)
+    parser.add_argument("--eval-robots", type=int, default=None,
+                        help="robots per evaluation run (eval.robots; recorded and checked "
+                             "like --frames)")
+    parser.add_argument("--minutes", type=float, default=None,
+                        help="start no job after this many minutes (a session's window)")
+    parser.add_argument("--park", action="store_true",
+                        help="copy unfinished jobs' checkpoints to paper_jobs/<job>/"
+                             "unfinished/ to commit (a session ending inside a job)")
     parser.add_argument("--seeds", default="0", help="training seeds of every study")
     parser.add_argument("--recipe", choices=sorted(RECIPES), default="v2",
                         help="the teachers' hiking recipe (learn_hike --recipe): v2, the "
@@ -333,13 +405,16 @@ def main() -> None:
                              "comparison; paper_tables.md always shows all six)")
     args, overrides = parser.parse_known_args()
     specs = [t for t in PAPER_TABLES if t.name in args.tables]
+    if args.park:
+        park()
+        return
     if args.run:
         if not args.frames:
             parser.error("--run needs --frames (the same stage-2 frames for every job)")
         seeds = [int(x) for x in args.seeds.split(",")]
         main_too = "main" in args.tables
         run_jobs(planned_jobs(specs, seeds, main_too), args.frames, args.eval_runs,
-                 overrides, args.parallel, args.recipe)
+                 overrides, args.parallel, args.recipe, args.eval_robots, args.minutes)
         chosen = [(s.study, study_grid(s.study)) for s in specs]
         for study, grid in chosen + ([(MAIN.study, main_grid())] if main_too else []):
             study_table(JOBS, RESULTS / study, study,

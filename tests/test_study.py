@@ -298,3 +298,78 @@ def test_the_main_comparison_sets_lego_h_beside_each_baseline_per_category(
     gap = page.split("**gap**")[1]
     sr = next(line for line in gap.splitlines() if line.startswith("| SR"))
     assert "18.13 ± 1.19" in sr and "39.93 ± 1.55" in sr  # Table 8's EP-H and RMA-B on Gap
+
+
+def test_a_paper_job_killed_at_a_session_end_is_parked_and_resumes_on_a_fresh_clone(
+        tmp_path, monkeypatch) -> None:
+    """A sweep longer than a session (issue 47: 2 seeds x 9 jobs at >1M frames each): a job
+    the session's end kills leaves its checkpoint in multirun/paper/, which a fresh clone
+    lacks. ``--park`` copies it (with train.csv and config) to paper_jobs/<job>/unfinished/
+    for committing; the next ``--run`` resumes from it, and the finished record replaces it.
+    ``--minutes`` starts no job past its window. Failed before: no park, and a parked job
+    restarted from scratch."""
+    import shutil
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    from legoh.checkpoint import save_checkpoint
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments"))
+    import paper_tables
+
+    records, runs = tmp_path / "paper_jobs", tmp_path / "runs"
+    teacher = tmp_path / "teacher.pt"
+    teacher.write_bytes(b"teacher")
+    killed = runs / "h1-unified-seed0"  # killed mid-training: a checkpoint, no benchmark
+    (killed / ".hydra").mkdir(parents=True)
+    cfg = {"seed": 0, "robot": {"name": "h1"}, "eval": {"runs": 2, "robots": 400},
+           "algo": {"name": "unified", "total_frames": 1000, "num_envs": 4,
+                    "steps_per_env": 25}}
+    (killed / ".hydra" / "config.yaml").write_text(OmegaConf.to_yaml(cfg))
+    (killed / "train.csv").write_text("iteration,frames_per_s\n1,50\n")
+    save_checkpoint(killed / "unified.pt", {"format": 1, "models": {}, "iteration": 1,
+                                            "robot": "h1", "layout": {},
+                                            "extra": {"oracle": str(teacher)}})
+    write_job(runs / "h1-rma_b-seed0", "rma_b", 0, {"overall": per_run([1.0, 2.0])})
+    (runs / "h1-rma_b-seed0" / "rma_b.pt").write_bytes(b"finished: not parked")
+    parked = paper_tables.park(runs, records)
+    assert parked == [records / "h1-unified-seed0" / "unfinished"]
+    assert {p.name for p in parked[0].rglob("*") if p.is_file()} == {
+        "unified.pt", "train.csv", "config.yaml"}
+    shutil.rmtree(runs)  # a fresh clone: multirun/ is not committed
+    monkeypatch.setattr(paper_tables, "JOBS", records)
+    monkeypatch.setattr(paper_tables, "RUNS", runs)
+    assert paper_tables.run_job("h1-unified-seed0", "h1", "unified", 0, frames=1000,
+                                eval_runs=2, overrides=[], eval_robots=400,
+                                deadline=time.time() - 1) is None  # the window is spent
+    assert not runs.exists()
+    commands, real_run = [], subprocess.run
+
+    def finish(cmd, **kwargs):  # run.py's end: the benchmark beside the resumed run's files
+        if not any(str(c).startswith("hydra.run.dir=") for c in cmd):
+            return real_run(cmd, **kwargs)  # git, for the record's commit
+        commands.append(cmd)
+        out = Path(next(c for c in cmd if c.startswith("hydra.run.dir=")).split("=", 1)[1])
+        assert (out / "unified.pt").is_file() and (out / "train.csv").is_file()
+        write_job(tmp_path / "bench", "unified", 0, {"overall": per_run([40.0, 42.0])})
+        (out / "benchmark.csv").write_bytes((tmp_path / "bench" / "benchmark.csv").read_bytes())
+        with open(out / "train.csv", "a") as f:
+            f.write("2,100\n")
+        return subprocess.CompletedProcess(cmd, 0)
+
+    monkeypatch.setattr(paper_tables.subprocess, "run", finish)
+    record = paper_tables.run_job("h1-unified-seed0", "h1", "unified", 0, frames=1000,
+                                  eval_runs=2, overrides=[], eval_robots=400,
+                                  deadline=time.time() + 60)
+    cmd = commands[0]
+    assert f"resume={runs / 'h1-unified-seed0' / 'unified.pt'}" in cmd
+    assert "eval.robots=400" in cmd and "algo.total_frames=1000" in cmd
+    assert not (record / "unfinished").exists() and (record / "record.json").is_file()
+    assert (record / "train.csv").read_text().count("\n") == 3  # the parked rows kept
+    with pytest.raises(SystemExit, match="eval.robots=400; this sweep asks .*eval.robots=80:"):
+        paper_tables.run_job("h1-unified-seed0", "h1", "unified", 0, frames=1000,
+                             eval_runs=2, overrides=[], eval_robots=80)
+    with pytest.raises(SystemExit, match="--minutes 0: valid is > 0"):
+        paper_tables.run_jobs({}, frames=1000, eval_runs=2, overrides=[], minutes=0)

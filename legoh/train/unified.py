@@ -136,7 +136,7 @@ class StudentDistillation(Algorithm):
         at the learning rate the checkpoint's schedule reached, as an oracle's warm start."""
         state = load_student(self.cfg, path, self.student)
         start_at_checkpoint_lr(self.optimizers["ppo"], state)
-        print(f"[legoh] student weights from {path} (init=, iteration "
+        print(f"[legoh] student weights from {path} (init={self.cfg.init}, iteration "
               f"{state.get('iteration', '?')}; its teacher {state['extra'].get('oracle')}); "
               f"the teacher now {self.teacher_path}; PPO at lr "
               f"{self.optimizers['ppo'].param_groups[0]['lr']:.2e}")
