@@ -21,11 +21,12 @@ minutes, seed, commit, teacher and its hash, protocol, recipe) is copied to
 ``experiments/results/paper_jobs/<robot>-<algo>-seed<seed>/`` and committed, so a sweep
 longer than a session resumes on a fresh clone: a recorded job is skipped (one recorded
 with other settings is refused), a killed one resumes from its checkpoint in
-``multirun/paper/``, or on a fresh clone from ``paper_jobs/<job>/unfinished/``, where
-``--park`` copies it for committing. ``--minutes`` starts no job past a session's training
-window. The studies' tables are then written from the records. Without ``--run`` the
-tables are read from ``experiments/results/<study>/table.csv``; a study not run yet is
-listed with the command that runs it.
+``multirun/paper/``, or on a fresh clone from ``paper_jobs/<job>/unfinished/``, where a
+sweep parks it for committing: at the end of ``--minutes`` (a session's training window: no
+job starts after it, a job training at it checkpoints and is parked) or with ``--park``.
+The studies' tables are then written from the records. Without ``--run`` the tables are
+read from ``experiments/results/<study>/table.csv``; a study not run yet is listed with the
+command that runs it.
 
 Per metric the two methods are ordered in the paper and in ours (``ordering``: better,
 worse, or a tie when the means lie within one std); "agree" says whether the orderings
@@ -39,6 +40,7 @@ import csv
 import hashlib
 import json
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -222,9 +224,10 @@ def run_job(name: str, robot: str, algo: str, seed: int, frames: int, eval_runs:
     ``record.json`` (:func:`write_record`). A job recorded already is skipped, unless it was
     run with other frames, evaluation runs or robots (``eval_robots``; None: not checked)
     or recipe: refused, naming them (a record without ``record.json`` predates it: recipe
-    v1). A job not finished yet starts only before ``deadline`` (``time.time()``; None: any
-    time): None is returned for one left for a later session. ``log``: the job's console
-    goes to that file (parallel jobs), else to this one."""
+    v1). ``deadline`` (``time.time()``; None: none) is the sweep's window: a job starts only
+    before it, and one still training at it is stopped and parked (:func:`launch`,
+    :func:`park_job`); None is returned for a job left for a later session. ``log``: the
+    job's console goes to that file (parallel jobs), else to this one."""
     record = JOBS / name
     if (record / "benchmark.csv").is_file():
         want = {"algo.total_frames": frames, "eval.runs": eval_runs, "recipe": recipe}
@@ -255,14 +258,10 @@ def run_job(name: str, robot: str, algo: str, seed: int, frames: int, eval_runs:
         if checkpoint.is_file():
             cmd.append(f"resume={checkpoint}")
         print("[paper_tables]", " ".join(cmd), flush=True)
-        if log is None:
-            subprocess.run(cmd, check=True, cwd=ROOT)
-        else:
-            log.parent.mkdir(parents=True, exist_ok=True)
-            with open(log, "a", encoding="utf-8") as stream:
-                subprocess.run(cmd, check=True, cwd=ROOT, stdout=stream,
-                               stderr=subprocess.STDOUT)
-            print(f"[paper_tables] {name}: done ({log})", flush=True)
+        if not launch(cmd, log, deadline):
+            park_job(out, record / UNFINISHED, algo)
+            return None
+        print(f"[paper_tables] {name}: done", flush=True)
     for rel in RECORD:
         if (out / rel).is_file():
             (record / rel).parent.mkdir(parents=True, exist_ok=True)
@@ -277,27 +276,61 @@ def run_job(name: str, robot: str, algo: str, seed: int, frames: int, eval_runs:
 PARKED = ("train.csv", ".hydra/config.yaml")
 
 
+def launch(cmd: list[str], log: Path | None, deadline: float | None) -> bool:
+    """Run a job's ``cmd`` to its end (True), or until ``deadline`` (``time.time()``): then
+    SIGTERM, on which run.py finishes its iteration and writes its checkpoint
+    (``legoh.runs.GracefulStop``), and False. A failed job raises ``CalledProcessError``.
+    ``log``: the console goes to that file, else to this one."""
+    stream = None
+    if log is not None:
+        log.parent.mkdir(parents=True, exist_ok=True)
+        stream = open(log, "a", encoding="utf-8")  # noqa: SIM115 (closed below)
+    try:
+        proc = subprocess.Popen(cmd, cwd=ROOT, stdout=stream,
+                                stderr=None if stream is None else subprocess.STDOUT)
+        try:
+            proc.wait(None if deadline is None else max(0.0, deadline - time.time()))
+        except subprocess.TimeoutExpired:
+            proc.send_signal(signal.SIGTERM)
+            proc.wait()
+            return False
+    finally:
+        if stream is not None:
+            stream.close()
+    if proc.returncode != 0:
+        raise subprocess.CalledProcessError(proc.returncode, cmd)
+    return True
+
+
+def park_job(out: Path, dest: Path, algo: str) -> bool:
+    """A job's checkpoint, train.csv and config from its run folder ``out`` to ``dest``
+    (``paper_jobs/<job>/unfinished/``), to be committed (``git add -f``: results' ``*.pt``
+    are ignored); the next session's ``--run`` resumes from it (:func:`unpark`). False
+    when ``out`` has no checkpoint (stopped before its first one)."""
+    if not (out / f"{algo}.pt").is_file():
+        return False
+    for rel in (f"{algo}.pt", *PARKED):
+        if (out / rel).is_file():
+            (dest / rel).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(out / rel, dest / rel)
+    print(f"[paper_tables] {out.name}: parked in {dest} (commit it: git add -f {dest})",
+          flush=True)
+    return True
+
+
 def park(runs: Path | None = None, jobs: Path | None = None) -> list[Path]:
-    """Each unfinished job of ``runs`` (``multirun/paper/``: a checkpoint, no benchmark yet)
-    copied to ``jobs/<job>/unfinished/`` (``paper_jobs/``): a session that ends inside a
-    job commits that folder (``git add -f``: results' ``*.pt`` are ignored) and the next
-    session's ``--run`` resumes the job from it (:func:`unpark`) instead of from scratch.
-    Returns the folders written."""
+    """:func:`park_job` for each unfinished job of ``runs`` (``multirun/paper/``: a
+    checkpoint, no benchmark yet) into ``jobs/<job>/unfinished/`` (``paper_jobs/``), for a
+    sweep stopped some other way than its ``--minutes``. Returns the folders written."""
     runs, jobs = runs or RUNS, jobs or JOBS
     from omegaconf import OmegaConf
 
     parked = []
     for out in sorted(p for p in runs.glob("*") if (p / ".hydra" / "config.yaml").is_file()):
         algo = OmegaConf.load(out / ".hydra" / "config.yaml").algo.name
-        if (out / "benchmark.csv").is_file() or not (out / f"{algo}.pt").is_file():
-            continue
         dest = jobs / out.name / UNFINISHED
-        for rel in (f"{algo}.pt", *PARKED):
-            if (out / rel).is_file():
-                (dest / rel).parent.mkdir(parents=True, exist_ok=True)
-                shutil.copy2(out / rel, dest / rel)
-        parked.append(dest)
-        print(f"[paper_tables] {out.name}: parked in {dest} (commit it: git add -f {dest})")
+        if not (out / "benchmark.csv").is_file() and park_job(out, dest, algo):
+            parked.append(dest)
     return parked
 
 
@@ -358,8 +391,9 @@ def run_jobs(jobs: dict[str, tuple[str, str, int]], frames: int, eval_runs: int,
     """Every job of ``jobs``, ``parallel`` at a time (each console in
     ``multirun/paper/<job>.log`` when more than one): two training processes on these
     2 cores made ~1.6 x the frames of one (docs/oracle.md), so a sweep of 8 jobs finishes
-    sooner two at a time. A failed job stops the sweep once the running ones end. No job
-    starts after ``minutes`` (a session's training window; None: no limit)."""
+    sooner two at a time. A failed job stops the sweep once the running ones end.
+    ``minutes``: the sweep's window (a session's training time; None: no limit): no job
+    starts after it, and the jobs still training at it are stopped and parked."""
     if parallel < 1:
         raise SystemExit(f"[paper_tables] --parallel {parallel}: valid is >= 1")
     if minutes is not None and minutes <= 0:
@@ -389,10 +423,11 @@ def main() -> None:
                         help="robots per evaluation run (eval.robots; recorded and checked "
                              "like --frames)")
     parser.add_argument("--minutes", type=float, default=None,
-                        help="start no job after this many minutes (a session's window)")
+                        help="the sweep's window (a session's training time): no job starts "
+                             "after it; jobs training at it checkpoint and are parked")
     parser.add_argument("--park", action="store_true",
                         help="copy unfinished jobs' checkpoints to paper_jobs/<job>/"
-                             "unfinished/ to commit (a session ending inside a job)")
+                             "unfinished/ to commit (a sweep stopped another way)")
     parser.add_argument("--seeds", default="0", help="training seeds of every study")
     parser.add_argument("--recipe", choices=sorted(RECIPES), default="v2",
                         help="the teachers' hiking recipe (learn_hike --recipe): v2, the "

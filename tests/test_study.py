@@ -303,13 +303,13 @@ def test_the_main_comparison_sets_lego_h_beside_each_baseline_per_category(
 def test_a_paper_job_killed_at_a_session_end_is_parked_and_resumes_on_a_fresh_clone(
         tmp_path, monkeypatch) -> None:
     """A sweep longer than a session (issue 47: 2 seeds x 9 jobs at >1M frames each): a job
-    the session's end kills leaves its checkpoint in multirun/paper/, which a fresh clone
-    lacks. ``--park`` copies it (with train.csv and config) to paper_jobs/<job>/unfinished/
-    for committing; the next ``--run`` resumes from it, and the finished record replaces it.
-    ``--minutes`` starts no job past its window. Failed before: no park, and a parked job
-    restarted from scratch."""
+    still training when the session's window (``--minutes``) ends gets SIGTERM, checkpoints
+    and is parked in paper_jobs/<job>/unfinished/ (checkpoint, train.csv, config) for
+    committing, since a fresh clone lacks multirun/paper/; the next ``--run`` resumes it
+    from there, and the finished record replaces it. No job starts past the window.
+    Failed before: a killed job's checkpoint stayed in multirun/ and a fresh clone
+    restarted the job from scratch."""
     import shutil
-    import subprocess
     import sys
     import time
     from pathlib import Path
@@ -320,56 +320,85 @@ def test_a_paper_job_killed_at_a_session_end_is_parked_and_resumes_on_a_fresh_cl
     import paper_tables
 
     records, runs = tmp_path / "paper_jobs", tmp_path / "runs"
+    monkeypatch.setattr(paper_tables, "JOBS", records)
+    monkeypatch.setattr(paper_tables, "RUNS", runs)
     teacher = tmp_path / "teacher.pt"
     teacher.write_bytes(b"teacher")
-    killed = runs / "h1-unified-seed0"  # killed mid-training: a checkpoint, no benchmark
-    (killed / ".hydra").mkdir(parents=True)
     cfg = {"seed": 0, "robot": {"name": "h1"}, "eval": {"runs": 2, "robots": 400},
            "algo": {"name": "unified", "total_frames": 1000, "num_envs": 4,
                     "steps_per_env": 25}}
-    (killed / ".hydra" / "config.yaml").write_text(OmegaConf.to_yaml(cfg))
-    (killed / "train.csv").write_text("iteration,frames_per_s\n1,50\n")
-    save_checkpoint(killed / "unified.pt", {"format": 1, "models": {}, "iteration": 1,
-                                            "robot": "h1", "layout": {},
-                                            "extra": {"oracle": str(teacher)}})
-    write_job(runs / "h1-rma_b-seed0", "rma_b", 0, {"overall": per_run([1.0, 2.0])})
-    (runs / "h1-rma_b-seed0" / "rma_b.pt").write_bytes(b"finished: not parked")
-    parked = paper_tables.park(runs, records)
-    assert parked == [records / "h1-unified-seed0" / "unfinished"]
-    assert {p.name for p in parked[0].rglob("*") if p.is_file()} == {
+    calls = []
+
+    def train(rows: str, finished: bool):  # run.py: its run folder as it leaves it
+        def run(cmd, log, deadline):
+            calls.append(cmd)
+            out = Path(next(c for c in cmd if c.startswith("hydra.run.dir=")).split("=", 1)[1])
+            (out / ".hydra").mkdir(parents=True, exist_ok=True)
+            (out / ".hydra" / "config.yaml").write_text(OmegaConf.to_yaml(cfg))
+            with open(out / "train.csv", "a") as f:
+                f.write(rows)
+            save_checkpoint(out / "unified.pt", {"format": 1, "models": {}, "iteration": 1,
+                                                 "robot": "h1", "layout": {},
+                                                 "extra": {"oracle": str(teacher)}})
+            if finished:
+                write_job(tmp_path / "bench", "unified", 0, {"overall": per_run([40., 42.])})
+                shutil.copy(tmp_path / "bench" / "benchmark.csv", out / "benchmark.csv")
+            return finished
+        return run
+
+    job = ("h1-unified-seed0", "h1", "unified", 0)
+    each = {"frames": 1000, "eval_runs": 2, "overrides": [], "eval_robots": 400}
+    monkeypatch.setattr(paper_tables, "launch", train("iteration,frames_per_s\n1,50\n", False))
+    assert paper_tables.run_job(*job, **each, deadline=time.time() + 60) is None
+    parked = records / "h1-unified-seed0" / "unfinished"
+    assert {p.name for p in parked.rglob("*") if p.is_file()} == {
         "unified.pt", "train.csv", "config.yaml"}
+    assert not (records / "h1-unified-seed0" / "benchmark.csv").exists()
     shutil.rmtree(runs)  # a fresh clone: multirun/ is not committed
-    monkeypatch.setattr(paper_tables, "JOBS", records)
-    monkeypatch.setattr(paper_tables, "RUNS", runs)
-    assert paper_tables.run_job("h1-unified-seed0", "h1", "unified", 0, frames=1000,
-                                eval_runs=2, overrides=[], eval_robots=400,
-                                deadline=time.time() - 1) is None  # the window is spent
-    assert not runs.exists()
-    commands, real_run = [], subprocess.run
-
-    def finish(cmd, **kwargs):  # run.py's end: the benchmark beside the resumed run's files
-        if not any(str(c).startswith("hydra.run.dir=") for c in cmd):
-            return real_run(cmd, **kwargs)  # git, for the record's commit
-        commands.append(cmd)
-        out = Path(next(c for c in cmd if c.startswith("hydra.run.dir=")).split("=", 1)[1])
-        assert (out / "unified.pt").is_file() and (out / "train.csv").is_file()
-        write_job(tmp_path / "bench", "unified", 0, {"overall": per_run([40.0, 42.0])})
-        (out / "benchmark.csv").write_bytes((tmp_path / "bench" / "benchmark.csv").read_bytes())
-        with open(out / "train.csv", "a") as f:
-            f.write("2,100\n")
-        return subprocess.CompletedProcess(cmd, 0)
-
-    monkeypatch.setattr(paper_tables.subprocess, "run", finish)
-    record = paper_tables.run_job("h1-unified-seed0", "h1", "unified", 0, frames=1000,
-                                  eval_runs=2, overrides=[], eval_robots=400,
-                                  deadline=time.time() + 60)
-    cmd = commands[0]
-    assert f"resume={runs / 'h1-unified-seed0' / 'unified.pt'}" in cmd
-    assert "eval.robots=400" in cmd and "algo.total_frames=1000" in cmd
-    assert not (record / "unfinished").exists() and (record / "record.json").is_file()
+    assert paper_tables.run_job(*job, **each, deadline=time.time() - 1) is None  # too late
+    assert not runs.exists() and len(calls) == 1
+    monkeypatch.setattr(paper_tables, "launch", train("2,100\n", True))
+    record = paper_tables.run_job(*job, **each, deadline=time.time() + 60)
+    assert f"resume={runs / 'h1-unified-seed0' / 'unified.pt'}" in calls[-1]
+    assert "eval.robots=400" in calls[-1] and "algo.total_frames=1000" in calls[-1]
+    assert not parked.exists() and (record / "record.json").is_file()
     assert (record / "train.csv").read_text().count("\n") == 3  # the parked rows kept
     with pytest.raises(SystemExit, match="eval.robots=400; this sweep asks .*eval.robots=80:"):
-        paper_tables.run_job("h1-unified-seed0", "h1", "unified", 0, frames=1000,
-                             eval_runs=2, overrides=[], eval_robots=80)
+        paper_tables.run_job(*job, **{**each, "eval_robots": 80})
     with pytest.raises(SystemExit, match="--minutes 0: valid is > 0"):
         paper_tables.run_jobs({}, frames=1000, eval_runs=2, overrides=[], minutes=0)
+    # --park: the same for a sweep stopped another way; a finished job is not parked
+    write_job(runs / "h1-rma_b-seed0", "rma_b", 0, {"overall": per_run([1.0, 2.0])})
+    (runs / "h1-rma_b-seed0" / "rma_b.pt").write_bytes(b"finished")
+    (runs / "h1-unified-seed0" / "benchmark.csv").unlink()
+    assert paper_tables.park(runs, tmp_path / "jobs") == [
+        tmp_path / "jobs" / "h1-unified-seed0" / "unfinished"]
+
+
+def test_a_job_at_the_end_of_its_window_checkpoints_on_sigterm(tmp_path) -> None:
+    """``launch``: a job still running at the deadline gets SIGTERM (run.py then finishes
+    its iteration and writes its checkpoint) and the sweep is told it did not finish; one
+    that ends in time is finished; a failed one raises."""
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments"))
+    import paper_tables
+
+    mark = tmp_path / "checkpoint"
+    job = ("import signal, sys, time\n"
+           "def stop(*_):\n"
+           f"    open({str(mark)!r}, 'w').write('saved'); sys.exit(143)\n"
+           "signal.signal(signal.SIGTERM, stop)\n"
+           "print('training', flush=True)\n"
+           "time.sleep(30)\n")
+    log = tmp_path / "job.log"
+    t0 = time.time()
+    assert paper_tables.launch([sys.executable, "-c", job], log, time.time() + 3) is False
+    assert mark.read_text() == "saved" and time.time() - t0 < 20
+    assert "training" in log.read_text()
+    assert paper_tables.launch([sys.executable, "-c", "pass"], None, time.time() + 30)
+    with pytest.raises(subprocess.CalledProcessError):
+        paper_tables.launch([sys.executable, "-c", "raise SystemExit(3)"], None, None)
