@@ -389,3 +389,39 @@ def test_the_mixture_executes_the_teacher_on_a_share_beta_of_the_steps() -> None
         assert out.get(keys.ACTION)[acted].eq(1).all() and out.get(keys.ACTION)[~acted].eq(0).all()
         assert abs(float(acted.float().mean()) - beta) < 0.03
         assert student_rows(out).shape[0] == int((~acted).sum())
+
+
+def test_dagger_labels_are_clamped_to_algo_label_clip() -> None:
+    """The shipped v2 H1 oracle's raw mean actions on its own hiking states exceed what the
+    env applies (its ankles' RMS ~25, env.action_clip 20): ``algo.label_clip`` clamps the
+    DAgger labels the imitation and the prior learn from; None keeps them raw. Failed
+    before: no clamp, the labels reached ~47."""
+    from legoh import keys
+    from legoh.envs.hiking_env import make_env
+    from legoh.modules.actor_critic import LOC
+    from legoh.policies.embodiment import with_checkpoint_body
+    from legoh.policies.oracle import load_teacher
+    from legoh.policies.pretrained import resolve_checkpoint
+    from legoh.train.unified import label_with_oracle
+    from tests.conftest import compose_config
+
+    path = resolve_checkpoint("pretrained", "h1")
+    cfg = with_checkpoint_body(compose_config("robot=h1", "trail=hike", "algo=unified",
+                                              "env.reward_preset=leap"), path)
+    assert cfg.algo.label_clip is None  # the default: the oracle's raw mean
+    env = make_env(cfg, num_envs=8)
+    try:
+        oracle, _ = load_teacher(cfg, path, env)
+        td, raw = env.reset(), []
+        with torch.no_grad():
+            for _ in range(40):
+                td = oracle(td)
+                raw.append(td.get(LOC).abs().max())
+                label_with_oracle(oracle, td)
+                assert torch.equal(td.get(keys.TEACHER_ACTION), td.get(LOC))
+                label_with_oracle(oracle, td, clip=5.0)
+                assert td.get(keys.TEACHER_ACTION).abs().max() <= 5.0
+                td = env.step(td)["next"]
+    finally:
+        env.close()
+    assert max(raw) > 5.0  # the case the clamp is for

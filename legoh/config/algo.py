@@ -144,6 +144,12 @@ class UnifiedConfig(OracleConfig):
     # draw each pass, still in algo.minibatches steps): below 1 the imitation update costs
     # that share of its time, on smaller minibatches (docs/unified.md, Speed)
     distill_share: float = 1.0
+    # DAgger labels clamped to +-label_clip before imitation and the prior (None: the
+    # oracle's raw mean). The v2 H1 oracle drives its ankles with raw means of RMS 25 and 18
+    # (max 47; v1: 3.9 and 2.1) where the env clips at env.action_clip = 20 and the PD torque
+    # saturates from |a| ~ 2 at the default pose (effort_action_scale 0.5): the MSE then
+    # mostly fits differences the robot never feels (journal 2026-12-06-h1-student-v2)
+    label_clip: float | None = None
     # DAgger's mixture: the teacher's action is executed on a share beta of the steps,
     # 1 at the first iteration, 0 from this many on (linear; 0: off). legoh/train/dagger.py
     dagger_mix_iterations: int = 0

@@ -84,7 +84,7 @@ RANGES: list[tuple[str, Range]] = [
     ("algo.pn_*", ANY),  # reward weights: signed like env.rewards
     ("algo.lr", POSITIVE), ("algo.adaptation_lr", POSITIVE), ("algo.vae_lr", POSITIVE),
     ("algo.clip_epsilon", POSITIVE), ("algo.init_noise_std", POSITIVE),
-    ("algo.tanh_bound", POSITIVE), ("algo.max_grad_norm", POSITIVE),
+    ("algo.tanh_bound", POSITIVE), ("algo.label_clip", POSITIVE), ("algo.max_grad_norm", POSITIVE),
     ("algo.depth_far", POSITIVE),
     ("algo.distill_share", Range(0, 1, open_low=True)),
     ("algo.prior_pretrain_*", NON_NEGATIVE),  # 0: no pre-training of the prior

@@ -96,7 +96,7 @@ class StudentDistillation(Algorithm):
         """Labels, prior steps, PPO on the student's own steps, then the imitation losses."""
         algo = self.algo
         clock = {"labels": time.perf_counter()}
-        label_with_oracle(self.oracle, batch)
+        label_with_oracle(self.oracle, batch, algo.label_clip)
         stats = {}
         if self.vae is not None:
             teacher = batch.get(keys.TEACHER_ACTION)
@@ -165,11 +165,13 @@ class StudentDistillation(Algorithm):
               f"joint's mean: {out['recon_error_mean_guess']:.3f})")
 
 
-def label_with_oracle(oracle, batch) -> None:
-    """DAgger labels: the oracle's mean action and scandot latent on the student's states."""
+def label_with_oracle(oracle, batch, clip: float | None = None) -> None:
+    """DAgger labels: the oracle's mean action (clamped to +-``clip`` unless None:
+    ``algo.label_clip``) and scandot latent on the student's states."""
     with torch.no_grad():
         out = oracle(batch.select(*oracle.in_keys).clone(recurse=False))
-    batch.set(keys.TEACHER_ACTION, out.get(LOC))
+    action = out.get(LOC)
+    batch.set(keys.TEACHER_ACTION, action if clip is None else action.clamp(-clip, clip))
     batch.set(keys.TEACHER_LATENT, out.get(keys.TEACHER_LATENT))
 
 
