@@ -309,10 +309,7 @@ def park_job(out: Path, dest: Path, algo: str) -> bool:
     when ``out`` has no checkpoint (stopped before its first one)."""
     if not (out / f"{algo}.pt").is_file():
         return False
-    for rel in (f"{algo}.pt", *PARKED):
-        if (out / rel).is_file():
-            (dest / rel).parent.mkdir(parents=True, exist_ok=True)
-            shutil.copy2(out / rel, dest / rel)
+    copy_parked(out, dest, algo)
     print(f"[paper_tables] {out.name}: parked in {dest} (commit it: git add -f {dest})",
           flush=True)
     return True
@@ -339,11 +336,16 @@ def unpark(parked: Path, out: Path, algo: str) -> None:
     checkpoint of its own (a killed run of this session: newer)."""
     if (out / f"{algo}.pt").is_file() or not (parked / f"{algo}.pt").is_file():
         return
-    for rel in (f"{algo}.pt", *PARKED):
-        if (parked / rel).is_file():
-            (out / rel).parent.mkdir(parents=True, exist_ok=True)
-            shutil.copy2(parked / rel, out / rel)
+    copy_parked(parked, out, algo)
     print(f"[paper_tables] {out.name}: resumes from {parked}", flush=True)
+
+
+def copy_parked(src: Path, dst: Path, algo: str) -> None:
+    """The files a parked job keeps (its checkpoint and ``PARKED``) from ``src`` to ``dst``."""
+    for rel in (f"{algo}.pt", *PARKED):
+        if (src / rel).is_file():
+            (dst / rel).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(src / rel, dst / rel)
 
 
 def recorded_settings(record: Path) -> dict:
