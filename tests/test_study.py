@@ -2,6 +2,7 @@
 paper's ± is over 5 evaluation runs), pooled exactly over a method's jobs. Job folders are
 written by hand here: a benchmark.csv of known per-run values and a .hydra/config.yaml."""
 
+import json
 import math
 
 import numpy as np
@@ -63,6 +64,11 @@ def test_the_table_has_category_rows_and_a_std_over_evaluation_runs(tmp_path) ->
     assert "unified 6" in text  # evaluation runs pooled in each row
     csv_rows = paths["csv"].read_text().splitlines()
     assert csv_rows[0].startswith("algo.name,category,")
+    # failed before: the jobs' folders were absolute paths of the machine that wrote it
+    dirs = [j["dir"] for jobs in json.loads(paths["summary"].read_text())["groups"].values()
+            for j in jobs]
+    assert sorted(dirs) == ["../multirun/unified-seed0", "../multirun/unified-seed1"]
+    assert all((paths["summary"].parent / d / "benchmark.csv").is_file() for d in dirs)
     assert {r.split(",")[1] for r in csv_rows[1:]} == {"overall", "forest", "gap"}
 
 

@@ -19,6 +19,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -242,8 +243,11 @@ def study_table(sweep_dir: str | Path, out_dir: str | Path, study: str,
              "plot": plot_study(table["overall"], out / "table.png", title)}
     paths["markdown"].write_text("\n".join(lines) + "\n", encoding="utf-8")
     write_study_csv(paths["csv"], table, group_by)
+    # job folders relative to the summary's own: the same file on every clone
+    portable = {label: [{**j, "dir": os.path.relpath(j["dir"], out)} for j in jobs]
+                for label, jobs in groups.items()}
     paths["summary"].write_text(json.dumps({"study": study, "group_by": group_by,
-                                            "groups": groups}, indent=2), encoding="utf-8")
+                                            "groups": portable}, indent=2), encoding="utf-8")
     return paths
 
 
