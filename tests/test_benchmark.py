@@ -104,6 +104,24 @@ def test_eval_robots_stand_on_waypoints_with_the_path_left_in_range() -> None:
         env.close()
 
 
+def test_a_from_the_start_evaluation_starts_every_robot_at_the_trail_start() -> None:
+    """``eval.spawn_remaining=null`` (the hill trail's protocol): every robot on its trail's
+    start pad, none along the trail.
+
+    Failed before with: training's ``env.spawn_along`` (0.5) reached the evaluation env, so
+    about half the robots started mid-trail (goal index > 0), some a few metres from the
+    terminus: the hill trail's films and DW / reach shares mixed both starts."""
+    env = make_eval_env(compose_config(*TINY, "eval.robots=16", "eval.spawn_remaining=null"))
+    try:
+        td = env.reset()
+        tile = td[keys.TILE].numpy()
+        assert (td[keys.WAYPOINT].numpy() == 0).all()
+        start = env.trails.start[tile][:, :2]
+        assert np.abs(td[keys.BASE_POS][:, :2].numpy() - start).max() < 1e-6
+    finally:
+        env.close()
+
+
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory: pytest.TempPathFactory) -> tuple:
     cfg = compose_config(*TINY)

@@ -107,14 +107,16 @@ def eval_env_settings(cfg: DictConfig, run: int) -> tuple[DictConfig, int, dict]
     episodes of ``eval.seconds``, spawns ``eval.spawn_remaining`` m of path from the
     terminus without xy jitter (protocol v2: a robot starts on its waypoint, on its support,
     the obstacle ahead; ``spawns.trail_spawn``), :func:`eval_randomization` (the evaluation
-    reach radius comes with ``evaluation``)."""
+    reach radius comes with ``evaluation``). With ``eval.spawn_remaining`` null every robot
+    starts at the trail start: training's ``env.spawn_along`` share is off."""
     ev = cfg.eval
     curriculum = dataclasses.replace(OmegaConf.to_object(cfg.env.curriculum), enabled=False)
     spawn = None if ev.spawn_remaining is None else [float(x) for x in ev.spawn_remaining]
     return (run_config(cfg, run), ev.robots,
             {"episode_length_s": float(ev.seconds), "curriculum": curriculum,
              "spawn_remaining": spawn, "spawn_noise": 0.0,
-             "randomization": eval_randomization(cfg)})
+             # no robot of a from-the-start evaluation (the hill trail) starts mid-trail
+             "spawn_along": 0.0, "randomization": eval_randomization(cfg)})
 
 
 def student_eval_env_fn(cfg: DictConfig, student) -> Callable[[int], EnvBase]:
