@@ -58,7 +58,9 @@ def walk_env_settings(cfg, trail: str, randomize: bool) -> tuple:
     rand = from_first_step(OmegaConf.to_object(run.env.randomization), enabled=randomize)
     cur = OmegaConf.to_object(run.env.curriculum)
     cur.enabled = False
-    return run, {"episode_length_s": SECONDS, "randomization": rand, "curriculum": cur}
+    # every robot from the trail start: the metres walked measure a walk, not a spawn
+    return run, {"episode_length_s": SECONDS, "randomization": rand, "curriculum": cur,
+                 "spawn_along": 0.0}
 
 
 def eval_env(cfg, trail: str, randomize: bool, robots: int = ROBOTS):

@@ -2,6 +2,7 @@
 
 import copy
 import csv
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +13,7 @@ from tensordict.nn import TensorDictModule
 
 from legoh import keys
 from legoh.checkpoint import CheckpointError, make_payload, save_checkpoint
+from legoh.envs.hiking_env import make_env
 from legoh.envs.mdp.events import randomizing
 from legoh.eval.benchmark import (
     OVERALL,
@@ -118,6 +120,24 @@ def test_a_from_the_start_evaluation_starts_every_robot_at_the_trail_start() -> 
         assert (td[keys.WAYPOINT].numpy() == 0).all()
         start = env.trails.start[tile][:, :2]
         assert np.abs(td[keys.BASE_POS][:, :2].numpy() - start).max() < 1e-6
+    finally:
+        env.close()
+
+
+def test_the_walk_test_starts_every_robot_at_the_trail_start() -> None:
+    """learn_walk's walk test (the campaigns' (s1)): every robot at its trail start.
+
+    Failed before with: KeyError 'spawn_along' (training's share of mid-trail spawns, 0.5
+    under recipe v2, reached the walk test: its metres walked mixed starts 2-20 m from the
+    terminus)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments"))
+    from learn_walk import walk_env_settings
+
+    run, overrides = walk_env_settings(compose_config(*TINY), "flat", randomize=False)
+    assert overrides["spawn_along"] == 0.0
+    env = make_env(run, num_envs=16, evaluation=True, **overrides)
+    try:
+        assert (env.reset()[keys.WAYPOINT].numpy() == 0).all()
     finally:
         env.close()
 
