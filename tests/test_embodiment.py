@@ -26,8 +26,8 @@ def foot_geom_types(env) -> list[int]:
 @pytest.mark.parametrize(("robot", "algo", "feet"), [
     ("h1", "oracle", FeetCollider.spheres),  # the recipe-v2 oracles (shipped 2026-12-06)
     ("g1", "oracle", FeetCollider.spheres),
-    ("h1", "unified", FeetCollider.spheres),  # the v2 oracle's student (shipped 2026-12-06)
-    ("g1", "unified", FeetCollider.source)])  # the v1 oracle's student
+    ("h1", "unified", FeetCollider.spheres),  # the v2 oracles' students (shipped 2026-12-06)
+    ("g1", "unified", FeetCollider.spheres)])
 def test_committed_checkpoints_evaluate_on_their_own_feet(robot: str, algo: str,
                                                           feet: FeetCollider) -> None:
     cfg = compose_config(f"robot={robot}", f"algo={algo}", "trail=flat", "trail.variants=1",
