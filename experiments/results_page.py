@@ -285,24 +285,27 @@ def hill_dir(stage: str) -> Path:
     return HILL if stage == "oracle" else HILL / stage
 
 
-def film_hill(robot: str, level: int, robots: int, seconds: float,
+def film_hill(robot: str, level: int, robots: int, seconds: float | None = None,
               stage: str = "oracle") -> None:
     """The shipped policy of ``stage`` (``oracle``, or a student: ``unified``) from the start
     of a hill trail: a video of robot 0 (a student's with its depth view beside), and every
-    robot's path over the map (the benchmark's trajectories picture)."""
+    robot's path over the map (the benchmark's trajectories picture). ``seconds`` defaults
+    to the benchmark's time per metre of path (``from_start_seconds``)."""
     from legoh.config.compose import compose_config
-    from legoh.eval.benchmark import evaluate, make_eval_env
+    from legoh.eval.benchmark import evaluate, from_start_seconds, make_eval_env
     from legoh.eval.cli import build_actor, for_checkpoint
     from legoh.play import render_policy_video
 
     cfg = compose_config(f"robot={robot}", "trail=hill", f"eval.robots={robots}",
                          "eval.runs=1", "eval.variants=1", f"eval.levels=[{level}]",
-                         f"eval.seconds={seconds}", "eval.spawn_remaining=null",
+                         "eval.spawn_remaining=null",
                          *([] if stage == "oracle" else [f"algo={stage}"]))
     cfg, _ = for_checkpoint(cfg, "pretrained")  # its own feet (and a student's camera)
     env = make_eval_env(cfg)
     length = float(env.trails_t.length.max())  # m of expert path, start to terminus
     env.close()
+    seconds = from_start_seconds(length) if seconds is None else float(seconds)
+    cfg.eval.seconds = seconds
     policy, env_fn = build_actor(cfg, "pretrained")  # what mode=play and mode=eval load
     actor = policy.policy if env_fn is not None else policy
     out = hill_dir(stage)
@@ -358,7 +361,9 @@ def main() -> None:
     parser.add_argument("--robots", type=int, default=16)
     parser.add_argument("--stage", default="oracle",
                         help="--hill: the shipped policy, oracle or a student (unified)")
-    parser.add_argument("--seconds", type=float, default=90.0)
+    parser.add_argument("--seconds", type=float, default=None,
+                        help="--hill: the horizon (default: 3 s a metre of the trail's path, "
+                             "the benchmark's own: 192 s for level 1's 64 m)")
     args = parser.parse_args()
     if args.hill:
         film_hill(args.robot, args.level, args.robots, args.seconds, args.stage)

@@ -20,6 +20,7 @@ from legoh.eval.benchmark import (
     compare,
     eval_env_settings,
     evaluate,
+    from_start_seconds,
     make_eval_env,
     rollout_level,
     run_config,
@@ -122,6 +123,17 @@ def test_a_from_the_start_evaluation_starts_every_robot_at_the_trail_start() -> 
         assert np.abs(td[keys.BASE_POS][:, :2].numpy() - start).max() < 1e-6
     finally:
         env.close()
+
+
+def test_a_from_start_horizon_gives_the_benchmarks_time_per_metre() -> None:
+    """The hill trail's horizon is the benchmark's own slack per metre of path: its longest
+    spawn (10 m left) gets exactly the protocol's 30 s, and a trail twice as long twice that;
+    the hill's 64 m get 192 s (it was a fixed 90 s: 1.1 x a flawless walk)."""
+    protocol = compose_config().eval
+    longest = max(protocol.spawn_remaining)
+    assert from_start_seconds(longest) == pytest.approx(protocol.seconds)
+    assert from_start_seconds(2 * longest) == pytest.approx(2 * protocol.seconds)
+    assert from_start_seconds(64.0) == pytest.approx(192.0)
 
 
 def test_the_walk_test_starts_every_robot_at_the_trail_start() -> None:

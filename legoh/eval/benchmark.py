@@ -35,6 +35,7 @@ from tqdm import tqdm
 
 from legoh import keys
 from legoh.config.env import RandomizationConfig, from_first_step
+from legoh.config.eval import EvalConfig
 from legoh.eval.metrics import (
     SIGNALS,
     TC_RADIUS,
@@ -117,6 +118,15 @@ def eval_env_settings(cfg: DictConfig, run: int) -> tuple[DictConfig, int, dict]
              "spawn_remaining": spawn, "spawn_noise": 0.0,
              # no robot of a from-the-start evaluation (the hill trail) starts mid-trail
              "spawn_along": 0.0, "randomization": eval_randomization(cfg)})
+
+
+def from_start_seconds(length_m: float) -> float:
+    """The horizon of a from-the-start evaluation (``eval.spawn_remaining=null``, the hill
+    trail) over ``length_m`` of expert path: the benchmark's own time per metre, its episode
+    over its longest spawn (30 s for 10 m: 3 s/m, 2.4 x a flawless walk at the 0.8 m/s
+    command), so a long trail gets the slack a benchmark robot gets (64 m: 192 s)."""
+    protocol = EvalConfig()
+    return protocol.seconds / max(protocol.spawn_remaining) * float(length_m)
 
 
 def student_eval_env_fn(cfg: DictConfig, student) -> Callable[[int], EnvBase]:
