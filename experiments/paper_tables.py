@@ -44,6 +44,7 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -258,7 +259,7 @@ def run_job(name: str, robot: str, algo: str, seed: int, frames: int, eval_runs:
         if checkpoint.is_file():
             cmd.append(f"resume={checkpoint}")
         print("[paper_tables]", " ".join(cmd), flush=True)
-        if not launch(cmd, log, deadline):
+        if not launch(cmd, log, deadline, lambda: trained_all(out, frames)):
             park_job(out, record / UNFINISHED, algo)
             return None
         print(f"[paper_tables] {name}: done", flush=True)
@@ -271,16 +272,37 @@ def run_job(name: str, robot: str, algo: str, seed: int, frames: int, eval_runs:
     return record
 
 
+def trained_all(out: Path, frames: int) -> bool:
+    """Whether the job in ``out`` has trained its ``frames`` (it is evaluating now): the
+    last iteration of its ``train.csv`` against its config's batch, as run.py counts them."""
+    from omegaconf import OmegaConf
+
+    log, config = out / "train.csv", out / ".hydra" / "config.yaml"
+    if not (log.is_file() and config.is_file()):
+        return False
+    algo = OmegaConf.load(config).algo
+    iterations = max(1, frames // (int(algo.num_envs) * int(algo.steps_per_env)))
+    with open(log, "rb") as f:
+        f.seek(max(0, f.seek(0, 2) - 65536))  # the last rows are enough
+        rows = [r for r in f.read().decode("utf-8", "replace").splitlines() if r.strip()]
+    last = rows[-1].split(",", 1)[0] if rows else ""
+    return last.isdigit() and int(last) >= iterations
+
+
 # what a killed job needs to resume on a fresh clone: its checkpoint, the training log the
 # resumed run appends to, and the config it ran with
 PARKED = ("train.csv", ".hydra/config.yaml")
 
 
-def launch(cmd: list[str], log: Path | None, deadline: float | None) -> bool:
+def launch(cmd: list[str], log: Path | None, deadline: float | None,
+           evaluating: Callable[[], bool] | None = None) -> bool:
     """Run a job's ``cmd`` to its end (True), or until ``deadline`` (``time.time()``): then
     SIGTERM, on which run.py finishes its iteration and writes its checkpoint
-    (``legoh.runs.GracefulStop``), and False. A failed job raises ``CalledProcessError``.
-    ``log``: the console goes to that file, else to this one."""
+    (``legoh.runs.GracefulStop``), and False. A job whose ``evaluating()`` is true at the
+    deadline has trained all its frames and is scoring them: it runs to its end (True), as
+    a SIGTERM would kill the benchmark and throw away up to half an hour of it. A failed
+    job raises ``CalledProcessError``. ``log``: the console goes to that file, else to
+    this one."""
     stream = None
     if log is not None:
         log.parent.mkdir(parents=True, exist_ok=True)
@@ -291,9 +313,14 @@ def launch(cmd: list[str], log: Path | None, deadline: float | None) -> bool:
         try:
             proc.wait(None if deadline is None else max(0.0, deadline - time.time()))
         except subprocess.TimeoutExpired:
-            proc.send_signal(signal.SIGTERM)
-            proc.wait()
-            return False
+            if evaluating is not None and evaluating():
+                print("[paper_tables] the window is spent while a job scores its last "
+                      "checkpoint: waiting for its benchmark", flush=True)
+                proc.wait()
+            else:
+                proc.send_signal(signal.SIGTERM)
+                proc.wait()
+                return False
     finally:
         if stream is not None:
             stream.close()

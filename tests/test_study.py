@@ -336,7 +336,7 @@ def test_a_paper_job_killed_at_a_session_end_is_parked_and_resumes_on_a_fresh_cl
     calls = []
 
     def train(rows: str, finished: bool):  # run.py: its run folder as it leaves it
-        def run(cmd, log, deadline):
+        def run(cmd, log, deadline, evaluating=None):
             calls.append(cmd)
             out = Path(next(c for c in cmd if c.startswith("hydra.run.dir=")).split("=", 1)[1])
             (out / ".hydra").mkdir(parents=True, exist_ok=True)
@@ -381,6 +381,30 @@ def test_a_paper_job_killed_at_a_session_end_is_parked_and_resumes_on_a_fresh_cl
         tmp_path / "jobs" / "h1-unified-seed0" / "unfinished"]
 
 
+def test_a_job_has_trained_all_its_frames_by_its_last_logged_iteration(tmp_path) -> None:
+    """``trained_all``: run.py's count (frames // (num_envs x steps_per_env)) against the
+    last row of train.csv; no log or config yet: still training.
+
+    Failed before with: AttributeError (there was no such test: a sweep's window SIGTERMed
+    a job in its 27-minute benchmark, which killed it, 2026-12-06)."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments"))
+    import paper_tables
+
+    assert not paper_tables.trained_all(tmp_path, 1000)
+    (tmp_path / ".hydra").mkdir()
+    (tmp_path / ".hydra" / "config.yaml").write_text(
+        OmegaConf.to_yaml({"algo": {"num_envs": 4, "steps_per_env": 25}}))
+    (tmp_path / "train.csv").write_text("iteration,frames_per_s\n1,50\n9,50\n")
+    assert not paper_tables.trained_all(tmp_path, 1000)  # 10 iterations of 100 frames
+    with open(tmp_path / "train.csv", "a") as f:
+        f.write("10,50\n")
+    assert paper_tables.trained_all(tmp_path, 1000)
+    assert not paper_tables.trained_all(tmp_path, 2000)
+
+
 def test_a_job_at_the_end_of_its_window_checkpoints_on_sigterm(tmp_path) -> None:
     """``launch``: a job still running at the deadline gets SIGTERM (run.py then finishes
     its iteration and writes its checkpoint) and the sweep is told it did not finish; one
@@ -406,5 +430,11 @@ def test_a_job_at_the_end_of_its_window_checkpoints_on_sigterm(tmp_path) -> None
     assert mark.read_text() == "saved" and time.time() - t0 < 20
     assert "training" in log.read_text()
     assert paper_tables.launch([sys.executable, "-c", "pass"], None, time.time() + 30)
+    # past the window while scoring its last checkpoint: it runs to its end, no SIGTERM
+    mark.unlink()
+    scoring = job.replace("time.sleep(30)", "time.sleep(4)")
+    assert paper_tables.launch([sys.executable, "-c", scoring], log, time.time() + 1,
+                               lambda: True) is True
+    assert not mark.exists()
     with pytest.raises(subprocess.CalledProcessError):
         paper_tables.launch([sys.executable, "-c", "raise SystemExit(3)"], None, None)
