@@ -158,11 +158,12 @@ def summary_line(counts: dict[str, int]) -> str:
             f"{counts.get('paper ties', 0)}; {counts.get('–', 0)} without a value.")
 
 
-def planned_jobs(specs, seeds: list[int], main: bool = False
-                 ) -> dict[str, tuple[str, str, int]]:
+def planned_jobs(specs, seeds: list[int], main: bool = False,
+                 only: list[str] | None = None) -> dict[str, tuple[str, str, int]]:
     """``{job: (robot, algo, seed)}``: every job the studies of ``specs`` (and with ``main``
     the main comparison's, :data:`MAIN`) compare, each once (LEGO-H on H1 is in five
-    studies, EP-H in three)."""
+    studies, EP-H in three). ``only``: keep the jobs named ``<robot>-<algo>`` in it (a
+    budget probe runs LEGO-H alone before the rest may start at that budget)."""
     grids = [study_grid(spec.study) for spec in specs]
     if main:
         grids.append(main_grid())
@@ -172,6 +173,13 @@ def planned_jobs(specs, seeds: list[int], main: bool = False
             for algo in grid["algo.name"]:
                 for seed in seeds:
                     jobs.setdefault(f"{robot}-{algo}-seed{seed}", (robot, algo, seed))
+    if only is not None:
+        unknown = sorted(set(only) - {f"{r}-{a}" for r, a, _ in jobs.values()})
+        if unknown:
+            valid = sorted({f"{r}-{a}" for r, a, _ in jobs.values()})
+            raise SystemExit(f"[paper_tables] --jobs {','.join(unknown)}: valid are "
+                             f"{', '.join(valid)}")
+        jobs = {k: v for k, v in jobs.items() if f"{v[0]}-{v[1]}" in only}
     return jobs
 
 
@@ -467,6 +475,9 @@ def main() -> None:
     parser.add_argument("--tables", nargs="+", default=names, choices=names,
                         help="the tables whose studies --run runs (main: the main paper's "
                              "comparison; paper_tables.md always shows all six)")
+    parser.add_argument("--jobs", default=None,
+                        help="comma-separated <robot>-<algo> (e.g. h1-unified): run only "
+                             "these of the chosen tables' jobs, and write no tables (a probe)")
     args, overrides = parser.parse_known_args()
     specs = [t for t in PAPER_TABLES if t.name in args.tables]
     if args.park:
@@ -477,8 +488,11 @@ def main() -> None:
             parser.error("--run needs --frames (the same stage-2 frames for every job)")
         seeds = [int(x) for x in args.seeds.split(",")]
         main_too = "main" in args.tables
-        run_jobs(planned_jobs(specs, seeds, main_too), args.frames, args.eval_runs,
+        only = None if args.jobs is None else args.jobs.split(",")
+        run_jobs(planned_jobs(specs, seeds, main_too, only), args.frames, args.eval_runs,
                  overrides, args.parallel, args.recipe, args.eval_robots, args.minutes)
+        if only is not None:  # a probe: the studies' tables wait for all their jobs
+            return
         chosen = [(s.study, study_grid(s.study)) for s in specs]
         for study, grid in chosen + ([(MAIN.study, main_grid())] if main_too else []):
             study_table(JOBS, RESULTS / study, study,

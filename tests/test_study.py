@@ -286,6 +286,10 @@ def test_the_main_comparison_sets_lego_h_beside_each_baseline_per_category(
     tables = paper_tables.planned_jobs(PAPER_TABLES, [0, 1])
     both = paper_tables.planned_jobs(PAPER_TABLES, [0, 1], main=True)
     assert sorted(set(both) - set(tables)) == ["h1-rma_h-seed0", "h1-rma_h-seed1"]
+    probe = paper_tables.planned_jobs(PAPER_TABLES, [0, 1], True, only=["h1-unified"])
+    assert list(probe) == ["h1-unified-seed0", "h1-unified-seed1"]
+    with pytest.raises(SystemExit, match="--jobs h1-lego: valid are .*h1-unified"):
+        paper_tables.planned_jobs(PAPER_TABLES, [0], only=["h1-lego"])
     monkeypatch.setattr(paper_tables, "RESULTS", tmp_path)
     assert "Not run yet" in "\n".join(paper_tables.main_section(1000, 3))
     jobs = tmp_path / "jobs"
