@@ -28,7 +28,7 @@ from legoh.eval.benchmark import (
 from legoh.eval.cli import build_actor, main
 from legoh.eval.metrics import METRICS, column_title, distance_walked
 from legoh.eval.plots import plot_trajectories
-from legoh.eval.protocol import PROTOCOL, ProtocolMismatch, of_csv
+from legoh.eval.protocol import PROTOCOL, ProtocolMismatch, machine, of_csv
 from legoh.eval.study import read_overall
 from legoh.modules.actor_critic import OracleInputDims
 from tests.conftest import compose_config
@@ -182,6 +182,7 @@ def test_evaluation_writes_the_tables_and_picture(tiny: tuple) -> None:
     md = paths["markdown"].read_text(encoding="utf-8")
     assert "| flat |" in md and "| overall |" in md and "| level 0 |" in md
     assert f"benchmark protocol {PROTOCOL}" in md
+    assert f"scored on {machine()}" in md and "torch kernels" in machine()  # which CPU
     assert of_csv(paths["csv"]) == of_csv(paths["runs_csv"]) == PROTOCOL
     assert paths["trajectories"].read_bytes()[:4] == b"\x89PNG"
 

@@ -49,7 +49,7 @@ from legoh.eval.metrics import (
     write_runs_csv,
 )
 from legoh.eval.plots import outcome_labels, plot_trajectories
-from legoh.eval.protocol import LEGACY, protocol_of, same_protocol
+from legoh.eval.protocol import LEGACY, machine, protocol_of, same_protocol
 from legoh.policies.student import make_student_env, state_shapes
 from legoh.threads import torch_threads
 
@@ -281,7 +281,8 @@ def evaluate(cfg: DictConfig, actor, out_dir: str | Path, label: str = "policy",
     levels = {k: summary[k] for k, lv in zip(names, is_level, strict=True) if lv}
     title = (f"{label} on {cfg.trail.name} ({cfg.robot.name}): {ev.robots} robots x "
              f"{ev.seconds:g} s, levels {list(ev.levels)} x {ev.variants} variants, "
-             f"{ev.runs} run(s), mean ± std over runs, benchmark protocol {protocol}")
+             f"{ev.runs} run(s), mean ± std over runs, benchmark protocol {protocol}; "
+             f"scored on {machine()}")
     paths["markdown"] = out_dir / "benchmark.md"
     paths["markdown"].write_text(to_markdown(rows, "Category", title) + "\n"
                                  + to_markdown(levels, "Level", "Per level"), encoding="utf-8")

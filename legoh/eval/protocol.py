@@ -17,6 +17,7 @@ v2").
 from __future__ import annotations
 
 import csv
+import platform
 import warnings
 from collections.abc import Mapping
 from pathlib import Path
@@ -33,6 +34,22 @@ def protocol_of(cfg) -> str:
     geometry = getattr(cfg.trail, "geometry", GEOMETRY)
     geometry = str(getattr(geometry, "value", geometry))  # an enum in a composed config
     return PROTOCOL if geometry == GEOMETRY else f"{PROTOCOL}+geometry-{geometry}"
+
+
+def machine() -> str:
+    """The CPU and torch's CPU kernel set a benchmark ran on, for its title: rollouts replay
+    bit for bit on one machine but not across vector units (docs/metrics.md,
+    "Reproducibility"), so a reader can tell whether two files could have agreed."""
+    import torch
+
+    name = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as f:
+            name = next(line.split(":", 1)[1].strip() for line in f
+                        if line.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    return f"{name}, torch kernels {torch.backends.cpu.get_cpu_capability()}"
 
 
 class ProtocolMismatch(ValueError):
