@@ -216,13 +216,19 @@ def bench_policy(make_env, policy) -> dict:
         env.close()
 
 
-def score_teacher(cfg, make_env, path: Path, cache: dict, sha: str) -> dict | None:
+def score_teacher(cfg, make_env, path: Path, cache: dict, sha: str,
+                  siblings: Path | None = None) -> dict | None:
     """The teacher's benchmark row, ``cache``d by its file's hash, the protocol
     (``cfg.eval``) and the benchmark's code version (``BENCHMARK_VERSION``); None when the
-    file at ``path`` is no longer the one the snapshot learned from."""
+    file at ``path`` is no longer the one the snapshot learned from. ``siblings``: a folder
+    of run folders (``experiments/results/learn_student``) whose ``teacher.json`` rows under
+    the same key are taken, not scored again (a new arm of a teacher spent 8 min on it)."""
     protocol = OmegaConf.to_container(cfg.eval, resolve=True)
     digest = hashlib.sha256(json.dumps(protocol, sort_keys=True).encode()).hexdigest()[:8]
     key = f"{sha} {digest} v{BENCHMARK_VERSION}"
+    for other in sorted(siblings.glob("*/teacher.json")) if siblings is not None else ():
+        if key not in cache:
+            cache.update({k: v for k, v in json.loads(other.read_text()).items() if k == key})
     if key in cache:
         return cache[key]["row"]
     if not Path(path).is_file() or file_hash(path) != sha:
@@ -306,7 +312,7 @@ def evaluate_snapshots(args) -> None:
     make_env = student_eval_env_fn(cfg, student)  # the student's sensors, its state primed
     for _, snap in snapshots_to_score(out, rows, args.bench_every):
         theirs = score_teacher(cfg, make_env, Path(snap["teacher"]), cache,
-                               snap["teacher_sha"])
+                               snap["teacher_sha"], out.parent)
         cache_path.write_text(json.dumps(cache, indent=2))
         student.policy.load_state_dict(snap["policy"])
         t0 = time.perf_counter()
@@ -351,7 +357,7 @@ def average_snapshots(args) -> None:
     cache = json.loads(cache_path.read_text()) if cache_path.exists() else {}
     make_env = student_eval_env_fn(cfg, student)
     theirs = score_teacher(cfg, make_env, Path(snaps[-1]["teacher"]), cache,
-                           snaps[-1]["teacher_sha"])
+                           snaps[-1]["teacher_sha"], out.parent)
     cache_path.write_text(json.dumps(cache, indent=2))
     student.policy.load_state_dict(averaged.module.state_dict())
     first, last = snaps[0], snaps[-1]

@@ -200,3 +200,31 @@ def test_a_teacher_score_cached_by_older_benchmark_code_is_not_reused(tmp_path, 
     gone = tmp_path / "oracle.pt"
     assert learn_student.score_teacher(cfg, None, gone, cache, "abc123") is None
     assert "is gone or changed" in capsys.readouterr().out
+
+
+def test_a_new_arm_takes_its_teachers_score_from_a_sibling_run(tmp_path) -> None:
+    """A teacher scored under the same key (file hash, protocol, benchmark version) in
+    another run folder is not scored again: its row comes from that folder's teacher.json.
+    Failed before: the new arm re-benchmarked the teacher (here: make_env None raises)."""
+    sys.path.insert(0, str(ROOT / "experiments"))
+    import hashlib
+
+    import learn_student
+
+    args = learn_student.make_parser().parse_args(["--robot", "g1", "--out", str(tmp_path)])
+    cfg = learn_student.bench_config(args, Path("teacher.pt"))
+    protocol = OmegaConf.to_container(cfg.eval, resolve=True)
+    digest = hashlib.sha256(json.dumps(protocol, sort_keys=True).encode()).hexdigest()[:8]
+    key = f"abc123 {digest} v{learn_student.BENCHMARK_VERSION}"
+    (tmp_path / "g1-old").mkdir()
+    (tmp_path / "g1-old" / "teacher.json").write_text(json.dumps(
+        {key: {"row": {"d_sr": 60.0}}, "other 00000000 v1": {"row": {"d_sr": 1.0}}}))
+    cache: dict = {}
+    row = learn_student.score_teacher(cfg, None, tmp_path / "oracle.pt", cache, "abc123",
+                                      siblings=tmp_path)
+    assert row == {"d_sr": 60.0} and list(cache) == [key]  # only the row it used
+    other = tmp_path / "other.pt"
+    other.write_bytes(b"another teacher")
+    with pytest.raises(TypeError):  # no sibling has it: scored (here no env to score in)
+        learn_student.score_teacher(cfg, None, other, {}, learn_student.file_hash(other),
+                                    siblings=tmp_path)
