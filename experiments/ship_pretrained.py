@@ -4,6 +4,8 @@
     python experiments/ship_pretrained.py --robot h1 --stage unified \
         --run experiments/results/learn_student/h1-unified-s0
     python experiments/ship_pretrained.py --robot h1 --rescore     # the shipped file, anew
+    python experiments/ship_pretrained.py --robot g1 --stage unified --candidate \
+        --run experiments/results/learn_student/g1-unified-s0-v2lag --checkpoint ...  # try
 
 ``--stage oracle`` (default) copies the run's ``oracle.pt`` (refused above 10 MB); a
 stage-2 variant (``unified``, ``ep_h``, ...) copies ``<stage>.pt`` (or ``--checkpoint``, a
@@ -44,7 +46,7 @@ from legoh.checkpoint import save_checkpoint  # noqa: E402
 from legoh.config.compose import compose_config  # noqa: E402
 from legoh.eval.benchmark import evaluate  # noqa: E402
 from legoh.eval.cli import build_actor, for_checkpoint  # noqa: E402
-from legoh.eval.protocol import PROTOCOL, of_card  # noqa: E402
+from legoh.eval.protocol import PROTOCOL, of_card, of_csv  # noqa: E402
 from legoh.policies.pretrained import PRETRAINED_DIR, benchmark_protocol  # noqa: E402
 
 MAX_BYTES = 10 * 2**20
@@ -73,11 +75,20 @@ def main() -> None:
     parser.add_argument("--origin", help="what it started from (README line)")
     parser.add_argument("--main-job-only", action="store_true",
                         help="only (re)score the shipped oracle on the main job's protocol")
+    parser.add_argument("--candidate", action="store_true",
+                        help="score the run's checkpoint on the shipping protocol into "
+                             "<run>/ship_protocol_<stem>/ beside the shipped file; pretrained/ "
+                             "untouched (ship it after with the plain command)")
     parser.add_argument("--rescore", action="store_true",
                         help="only re-benchmark the shipped file on this code's protocol "
                              "(its card's table, protocol and, for an oracle, main_job)")
     args = parser.parse_args()
     card_path = PRETRAINED_DIR / f"{args.robot}_{args.stage}.json"
+    if args.candidate:
+        if not args.run:
+            parser.error("--candidate needs --run (the run folder of the checkpoint)")
+        candidate(args)
+        return
     if args.rescore:
         rescore(args, card_path)
         return
@@ -113,24 +124,74 @@ def main() -> None:
     print((PRETRAINED_DIR / "README.md").read_text())
 
 
-def ship_benchmark(args, export: Path | None = None) -> dict:
-    """Benchmark the shipped ``pretrained/<robot>_<stage>.pt`` on the shipping protocol
-    (``--robots`` per level, ``--runs`` runs, 5 variants a level, seed 2000) into
-    ``pretrained/<robot>_<stage>_eval``; a student is first exported to ``export`` when
-    given."""
+def ship_benchmark(args, export: Path | None = None, checkpoint: str = "pretrained",
+                   out: Path | None = None) -> dict:
+    """Benchmark ``checkpoint`` (default the shipped ``pretrained/<robot>_<stage>.pt``) on
+    the shipping protocol (``--robots`` per level, ``--runs`` runs, 5 variants a level,
+    seed 2000) into ``out`` (default ``pretrained/<robot>_<stage>_eval``); a student is
+    first exported to ``export`` when given."""
     cfg = compose_run(args.robot, 0, "walk", "hike", [
         f"algo={args.stage}", f"eval.robots={args.robots}", f"eval.runs={args.runs}",
         "eval.variants=5", "eval.levels=[0,1,2,3,4]", "eval.randomization=true",
         "eval.seed=2000"])
-    cfg, _ = for_checkpoint(cfg, "pretrained")  # scored on its own feet
-    policy, env_fn = build_actor(cfg, "pretrained")
+    cfg, _ = for_checkpoint(cfg, checkpoint)  # scored on its own feet
+    policy, env_fn = build_actor(cfg, checkpoint)
     if args.stage != "oracle":
         if export is not None:
             from legoh.export import export_student
             export_student(policy, export, meta={"robot": args.robot, "algo": args.stage})
         policy = policy.policy
-    return evaluate(cfg, policy, PRETRAINED_DIR / f"{args.robot}_{args.stage}_eval",
+    return evaluate(cfg, policy, out or PRETRAINED_DIR / f"{args.robot}_{args.stage}_eval",
                     label=f"{args.robot}_{args.stage}", env_fn=env_fn)
+
+
+def candidate(args) -> Path:
+    """``--candidate``: the run's checkpoint (or ``--checkpoint``) on the shipping protocol
+    into ``<run>/ship_protocol_<file stem>/``, ``pretrained/`` untouched, and
+    ``beside_shipped.md``: its SR per category beside the shipped file's and the shipped
+    oracle's (the ratio issue 47's bar reads). Shipping it is then the plain command."""
+    run = Path(args.run)
+    src = Path(args.checkpoint) if args.checkpoint else run / f"{args.stage}.pt"
+    out = run / f"ship_protocol_{src.stem}"
+    result = ship_benchmark(args, checkpoint=str(src), out=out)
+    columns = {"candidate": result["paths"]["csv"],
+               "shipped": PRETRAINED_DIR / f"{args.robot}_{args.stage}_eval" / "benchmark.csv",
+               "teacher": PRETRAINED_DIR / f"{args.robot}_oracle_eval" / "benchmark.csv"}
+    table = beside_shipped({k: v for k, v in columns.items() if Path(v).is_file()})
+    path = out / "beside_shipped.md"
+    path.write_text(f"**{src} on the shipping protocol, beside `pretrained/`**\n\n{table}",
+                    encoding="utf-8")
+    print(path.read_text())
+    return path
+
+
+def beside_shipped(files: dict[str, Path]) -> str:
+    """A Markdown table: each category's SR (mean ± std over runs) from each benchmark.csv
+    of ``files``, and the candidate's ratio to the teacher's where both are there."""
+    from legoh.eval.metrics import column_title
+    from legoh.eval.protocol import same_protocol
+
+    same_protocol({name: of_csv(path) for name, path in files.items()})
+    sr = column_title("SR")
+    rows: dict[str, dict[str, tuple[float, float]]] = {}
+    for name, path in files.items():
+        with open(path, newline="", encoding="utf-8") as f:
+            for r in csv.DictReader(f):
+                if not r["category"].startswith("level"):
+                    rows.setdefault(r["category"], {})[name] = (float(r[f"{sr} mean"]),
+                                                                 float(r[f"{sr} std"]))
+    ratio = "candidate" in files and "teacher" in files
+    head = ["category", *(f"{n} SR (%)" for n in files)] + (["candidate / teacher"]
+                                                             if ratio else [])
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for cat, got in rows.items():
+        cells = [cat] + [f"{got[n][0]:.2f} ± {got[n][1]:.2f}" if n in got else "–"
+                         for n in files]
+        if ratio:
+            cells.append(f"{got['candidate'][0] / got['teacher'][0]:.2f}"
+                         if got.get("teacher", (0,))[0] else "–")
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
 
 
 def rescore(args, card_path: Path) -> None:

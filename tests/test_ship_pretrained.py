@@ -1,5 +1,5 @@
-"""ship_pretrained's clock lookup: an averaged snapshot ships with the minutes of its last
-snapshot, not the run's end."""
+"""ship_pretrained: the clock lookup (an averaged snapshot ships with the minutes of its
+last snapshot, not the run's end) and a candidate's table beside the shipped files."""
 
 import sys
 from pathlib import Path
@@ -7,7 +7,9 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments"))
-from ship_pretrained import clock_minutes  # noqa: E402
+from ship_pretrained import beside_shipped, clock_minutes  # noqa: E402
+
+from legoh.eval.protocol import ProtocolMismatch  # noqa: E402
 
 
 def test_clock_minutes_reads_the_row_at_or_before_the_iteration(tmp_path):
@@ -20,3 +22,26 @@ def test_clock_minutes_reads_the_row_at_or_before_the_iteration(tmp_path):
     clock.write_text("iteration,minutes\n10,5.5\n")
     with pytest.raises(SystemExit, match="no row at or before iteration 3"):
         clock_minutes(clock, 3, None)
+
+
+def test_a_candidate_is_tabled_beside_the_shipped_student_and_the_teacher(tmp_path):
+    """Each category's SR from each benchmark.csv, and the candidate's ratio to the
+    teacher's; files of two protocols are refused."""
+    def bench(name: str, rows: dict[str, float], protocol: str = "v2") -> Path:
+        path = tmp_path / f"{name}.csv"
+        lines = ["category,SR (%) ↑ mean,SR (%) ↑ std,protocol"]
+        lines += [f"{cat},{sr},1.5,{protocol}" for cat, sr in rows.items()]
+        path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+        return path
+
+    files = {"candidate": bench("c", {"gap": 40.0, "overall": 54.0, "level 0": 90.0}),
+             "shipped": bench("s", {"gap": 31.875, "overall": 50.625}),
+             "teacher": bench("t", {"gap": 48.75, "overall": 60.0})}
+    table = beside_shipped(files).splitlines()
+    assert table[0] == ("| category | candidate SR (%) | shipped SR (%) | teacher SR (%) | "
+                        "candidate / teacher |")
+    assert table[2] == "| gap | 40.00 ± 1.50 | 31.88 ± 1.50 | 48.75 ± 1.50 | 0.82 |"
+    assert table[3].endswith("| 0.90 |") and len(table) == 4  # no level rows
+    files["shipped"] = bench("old", {"gap": 30.0}, protocol="v1")
+    with pytest.raises(ProtocolMismatch):
+        beside_shipped(files)
