@@ -168,18 +168,14 @@ def candidate(args) -> Path:
 def beside_shipped(files: dict[str, Path]) -> str:
     """A Markdown table: each category's SR (mean ± std over runs) from each benchmark.csv
     of ``files``, and the candidate's ratio to the teacher's where both are there."""
-    from legoh.eval.metrics import column_title
     from legoh.eval.protocol import same_protocol
+    from legoh.eval.study import read_rows
 
     same_protocol({name: of_csv(path) for name, path in files.items()})
-    sr = column_title("SR")
     rows: dict[str, dict[str, tuple[float, float]]] = {}
     for name, path in files.items():
-        with open(path, newline="", encoding="utf-8") as f:
-            for r in csv.DictReader(f):
-                if not r["category"].startswith("level"):
-                    rows.setdefault(r["category"], {})[name] = (float(r[f"{sr} mean"]),
-                                                                 float(r[f"{sr} std"]))
+        for cat, metrics in read_rows(path).items():
+            rows.setdefault(cat, {})[name] = metrics["SR"]
     ratio = "candidate" in files and "teacher" in files
     head = ["category", *(f"{n} SR (%)" for n in files)] + (["candidate / teacher"]
                                                              if ratio else [])
