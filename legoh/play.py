@@ -1,12 +1,14 @@
-"""``mode=play``: watch a policy hike. Robot 0's first episode as a video and a filmstrip.
+"""``mode=play``: watch a policy hike. One robot's first episode as a video and a filmstrip.
 
-The policy runs deterministically on a few robots of the evaluation env (``conf/eval``:
+The policy runs deterministically on ``play.robots`` robots of the evaluation env (``conf/eval``:
 episodes of ``eval.seconds``, on the hardest of ``eval.levels``, the level that the
 benchmark's ``trajectories.png`` shows). ``legoh/video.py`` films it: a camera behind and
 beside the robot on a dressed copy of the env's scene (the same terrain map and robot, with
 visual meshes, sky and shadows), the expert waypoints and the terminus drawn in, a caption
 on each frame (robot, trail, level, time, distance walked) and, for a policy with depth, its
-depth view beside the picture. Rendering is headless (EGL on Linux).
+depth view beside the picture. Rendering is headless (EGL on Linux). ``play.film`` picks the
+robot filmed: robot 0 by default, or the first that fell (``play.film=fell``: where a policy
+fails, seen at once), timed out or reached.
 
 The rollout is recorded first (:func:`record_rollout`: every robot's pose at every step)
 and filmed after (:func:`film`); ``viewer=web`` (``legoh/viewer``) replays the same record
@@ -46,7 +48,8 @@ from legoh.video import (  # noqa: E402
 )
 
 RENDER_EVERY = 2  # policy steps per frame: 50 Hz policy -> 25 fps, real time
-PLAY_ROBOTS = 4  # robots mode=play runs (robot 0 is filmed; the others give the mean DW)
+PLAY_ROBOTS = 4  # robots a film rolls out (the default of play.robots; others: the mean DW)
+OUTCOMES = ("reached", "fell", "time-out")  # how a robot's episode ends (Rollout.outcome)
 
 
 @dataclass
@@ -155,6 +158,19 @@ def record_rollout(cfg: DictConfig, actor, seconds: float | None = None,
             actor.train()
 
 
+def pick_robot(rollout: Rollout, film: str | int) -> int:
+    """The robot ``play.film`` names: an index, or an outcome (the first robot whose episode
+    ended so, the earliest-ending one; robot 0 when none did)."""
+    n, film = len(rollout.outcome), str(film)
+    if film in OUTCOMES:
+        hits = [i for i in range(n) if rollout.outcome[i] == film]
+        return min(hits, key=lambda i: (rollout.end[i], i)) if hits else 0
+    if film.isdigit() and int(film) < n:
+        return int(film)
+    raise ValueError(f"play.film={film!r}: expected a robot index 0..{n - 1} (play.robots={n}) "
+                     f"or one of {', '.join(OUTCOMES)}")
+
+
 def film_steps(end: int) -> list[int]:
     """The steps a video shows of an episode that ended on step ``end``: the reset, every
     ``RENDER_EVERY``-th step (real time at 25 fps) and the last."""
@@ -184,29 +200,32 @@ def film(cfg: DictConfig, rollout: Rollout, robot: int = 0) -> list[np.ndarray]:
 
 def render_policy_video(cfg: DictConfig, actor, out_path: str | Path,
                         seconds: float | None = None, robots: int = PLAY_ROBOTS,
-                        level: int | None = None, student=None) -> dict:
-    """Run ``actor`` as :func:`record_rollout` does and film robot 0's episode.
+                        level: int | None = None, student=None, robot: str | int = 0) -> dict:
+    """Run ``actor`` as :func:`record_rollout` does and film one robot's episode.
 
     Args:
         cfg, seconds, robots, level, student: as :func:`record_rollout` (a student's film
             shows the depth frame it sees beside the robot).
+        robot: whom to film, as ``play.film`` (:func:`pick_robot`): an index or an outcome.
         out_path: the video (``.mp4``; a ``.gif`` beside it without imageio-ffmpeg); the
             filmstrip goes next to it as ``<stem>_filmstrip.png``.
 
     Returns:
-        ``{"video": Path, "filmstrip": Path, "distance": m robot 0 walked toward its
-        terminus (DW), "fell": bool, "mean_distance": DW over all robots, "frames": int}``.
+        ``{"video": Path, "filmstrip": Path, "robot": the index filmed, "distance": m it
+        walked toward its terminus (DW), "fell": bool, "outcomes": every robot's outcome,
+        "mean_distance": DW over all robots, "frames": int}``.
     """
     out_path = Path(out_path)
     out_path.parent.mkdir(parents=True, exist_ok=True)
     rollout = record_rollout(cfg, actor, seconds, robots, level, student)
-    frames = film(cfg, rollout)
+    who = pick_robot(rollout, robot)
+    frames = film(cfg, rollout, who)
     video = write_video(frames, out_path, 1.0 / (rollout.dt * RENDER_EVERY))
     strip = write_filmstrip(frames, out_path.with_name(f"{out_path.stem}_filmstrip.png"))
     walked = rollout.walked[rollout.end, np.arange(robots)]
-    return {"video": video, "filmstrip": strip, "distance": float(walked[0]),
-            "fell": rollout.outcome[0] == "fell", "mean_distance": float(walked.mean()),
-            "frames": len(frames)}
+    return {"video": video, "filmstrip": strip, "robot": who, "distance": float(walked[who]),
+            "fell": rollout.outcome[who] == "fell", "outcomes": list(rollout.outcome),
+            "mean_distance": float(walked.mean()), "frames": len(frames)}
 
 
 def warn_untrained(checkpoint: str | None) -> None:
@@ -224,14 +243,19 @@ def main(cfg: DictConfig, out_dir: Path) -> dict:
     warn_untrained(checkpoint)
     cfg, checkpoint = for_checkpoint(cfg, checkpoint)  # a student's film: its own camera
     policy, env_fn = build_actor(cfg, checkpoint)
+    robots, pick = int(cfg.play.robots), str(cfg.play.film)
     if env_fn is None:  # an oracle
-        result = render_policy_video(cfg, policy, out_dir / "play.mp4")
+        result = render_policy_video(cfg, policy, out_dir / "play.mp4", robots=robots,
+                                     robot=pick)
     else:  # a student (algo=unified, ep_h, ...): its depth env, its depth view in the film
-        result = render_policy_video(cfg, policy.policy, out_dir / "play.mp4", student=policy)
+        result = render_policy_video(cfg, policy.policy, out_dir / "play.mp4", robots=robots,
+                                     student=policy, robot=pick)
     who = Path(checkpoint).name if checkpoint else "untrained actor"
-    print(f"[legoh] {who}: robot 0 walked {result['distance']:.2f} m toward the terminus "
-          f"and {'fell' if result['fell'] else 'did not fall'} (mean DW of "
-          f"{PLAY_ROBOTS} robots: {result['mean_distance']:.2f} m)")
+    counts = ", ".join(f"{result['outcomes'].count(o)} {o}" for o in OUTCOMES)
+    print(f"[legoh] {who}: robot {result['robot']} (play.film={pick}) walked "
+          f"{result['distance']:.2f} m toward the terminus and "
+          f"{'fell' if result['fell'] else 'did not fall'}; {robots} robots: {counts}, "
+          f"mean DW {result['mean_distance']:.2f} m")
     print(f"[legoh] video:     {result['video']}")
     print(f"[legoh] filmstrip: {result['filmstrip']}")
     return result

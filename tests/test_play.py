@@ -187,3 +187,28 @@ def test_videos_are_encoded_at_the_stated_rate_factor(tmp_path: Path) -> None:
     path = video.write_video(frames, tmp_path / "clip.mp4", fps=10.0)
     assert path.suffix == ".mp4"
     assert f"crf={video.VIDEO_CRF}.0".encode() in path.read_bytes()
+
+
+def test_play_film_picks_the_robot_whose_episode_ended_as_asked() -> None:
+    """``play.film``: an index films that robot; an outcome films the earliest robot whose
+    episode ended so (robot 0 when none did); anything else names the key and the choices."""
+    from types import SimpleNamespace
+
+    rollout = SimpleNamespace(outcome=["reached", "fell", "time-out", "fell"],
+                              end=np.array([80, 120, 1500, 40]))
+    assert play.pick_robot(rollout, "2") == 2 and play.pick_robot(rollout, 1) == 1
+    assert play.pick_robot(rollout, "fell") == 3  # robot 3 fell first (step 40)
+    assert play.pick_robot(rollout, "time-out") == 2
+    assert play.pick_robot(SimpleNamespace(outcome=["reached"], end=np.array([9])),
+                           "fell") == 0
+    for bad in ("4", "-1", "falls"):
+        with pytest.raises(ValueError, match=rf"play.film='{bad}'.*0..3.*play.robots=4"):
+            play.pick_robot(rollout, bad)
+
+
+def test_play_robots_must_be_a_count() -> None:
+    """play.robots=0 fails at validation, naming the key, value and range."""
+    from legoh.config import validate
+
+    with pytest.raises(ValueError, match=r"play\.robots=0 .*1 <= x"):
+        validate(compose_config("play.robots=0"))

@@ -22,8 +22,8 @@ from legoh.config.robot import CameraConfig, RobotConfig
 from legoh.config.trail import TrailConfig
 
 __all__ = ["CameraConfig", "CollectorConfig", "Config", "EnvConfig", "LossWeights",
-           "OracleConfig", "RobotConfig", "SimConfig", "TrailConfig", "UnifiedConfig", "Viewer",
-           "WebConfig", "register_configs", "validate"]
+           "OracleConfig", "PlayConfig", "RobotConfig", "SimConfig", "TrailConfig",
+           "UnifiedConfig", "Viewer", "WebConfig", "register_configs", "validate"]
 
 
 class Mode(Enum):
@@ -51,6 +51,16 @@ class WebConfig:
     # 8080:localhost:8080); 0.0.0.0 serves every network the machine is on
     host: str = "127.0.0.1"
     port: int = 8080  # a taken port: the next free one is used; 0: any free port
+
+
+@dataclass
+class PlayConfig:
+    """What ``mode=play`` rolls out and films (``play.robots``, ``play.film``)."""
+
+    robots: int = 4  # robots rolled out on the level; the others give the mean DW
+    # whose episode the video shows: a robot's index (0 .. robots-1), or an outcome
+    # (fell | time-out | reached): the first robot whose episode ended so (robot 0 if none)
+    film: str = "0"
 
 
 @dataclass
@@ -97,6 +107,7 @@ class Config:
     checkpoint: str | None = None  # eval, play: the policy; none: the untrained one
     viewer: Viewer = Viewer.video  # play: a video (video) or an interactive page (web)
     web: WebConfig = field(default_factory=WebConfig)  # viewer=web: where it serves
+    play: PlayConfig = field(default_factory=PlayConfig)  # mode=play: robots, whom to film
     video: bool = True  # train: the main job ends with a video of its policy (play.mp4)
     stand_seconds: float = 3.0  # s mode=stand holds the default pose before rendering
     # where stage 2 keeps the oracles it trained, keyed by their config, for reuse

@@ -58,6 +58,7 @@ RANGES: list[tuple[str, Range]] = [
     # top level
     ("seed", NON_NEGATIVE), ("stand_seconds", POSITIVE),
     ("web.port", Range(0, 65535)),  # 0: any free port
+    ("play.robots", COUNT),
     ("sim.dt", POSITIVE), ("sim.decimation", COUNT), ("sim.threads", NON_NEGATIVE),
     ("sim.hfield_chunk", POSITIVE), ("sim.nconmax", COUNT), ("sim.njmax", COUNT),
     ("sim.overflow_check_every", NON_NEGATIVE),

@@ -68,7 +68,7 @@ def main(cfg: DictConfig, overrides: Sequence[str] = ()) -> None:
     # Hydra's console handler would print every page's connection and disconnection
     logging.getLogger("websockets").setLevel(logging.WARNING)
     print("[legoh] recording the rollout (the page replays it) ...", flush=True)
-    viewer = make_viewer(cfg, checkpoint, overrides)
+    viewer = make_viewer(cfg, checkpoint, overrides, robots=int(cfg.play.robots))
     stop = threading.Event()
     previous = {s: signal.signal(s, lambda *_: stop.set())
                 for s in (signal.SIGINT, signal.SIGTERM)}
