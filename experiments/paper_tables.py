@@ -4,6 +4,7 @@
     python experiments/paper_tables.py --run --frames 100000 --eval-runs 3 [--seeds 0]
                                        [--parallel 2] [--eval-robots 400] [--minutes 45]
     python experiments/paper_tables.py --park   # before a session ends inside a job
+    python experiments/paper_tables.py --reopen h1-unified-seed0,h1-unified-seed1  # budget up
 
 Each paper table is answered by one study of ours (``legoh.eval.paper.PAPER_TABLES``):
 Table 1 by ``ablation_temporal`` (GRU vs causal transformer), Table 2 by ``ablation_prior``
@@ -24,6 +25,9 @@ with other settings is refused), a killed one resumes from its checkpoint in
 ``multirun/paper/``, or on a fresh clone from ``paper_jobs/<job>/unfinished/``, where a
 sweep parks it for committing: at the end of ``--minutes`` (a session's training window: no
 job starts after it, a job training at it checkpoints and is parked) or with ``--park``.
+``--reopen <job>,...`` sends recorded jobs back to training when a probe's rule raises the
+budget: each record moves to ``paper_budget/<job>-<F>M/`` (kept as the budget's evidence),
+and the job's checkpoint is parked, so the next ``--run --frames <more>`` resumes it.
 The studies' tables are then written from the records. Without ``--run`` the tables are
 read from ``experiments/results/<study>/table.csv``; a study not run yet is listed with the
 command that runs it.
@@ -60,6 +64,7 @@ from legoh.eval.study import read_study_csv, study_grid, study_table  # noqa: E4
 
 RESULTS = ROOT / "experiments" / "results"
 JOBS = RESULTS / "paper_jobs"  # each job's record, committed: a later session skips the job
+BUDGET = RESULTS / "paper_budget"  # probes' records at a budget the study moved past
 RUNS = ROOT / "multirun" / "paper"  # the jobs' run folders (checkpoints: not committed)
 UNFINISHED = "unfinished"  # paper_jobs/<job>/unfinished/: a parked job (park), committed
 RECORD = (".hydra/config.yaml", "benchmark.csv", "benchmark_runs.csv", "train.csv")
@@ -383,6 +388,58 @@ def copy_parked(src: Path, dst: Path, algo: str) -> None:
             shutil.copy2(src / rel, dst / rel)
 
 
+# a finished run's scores: moved aside by reopen, so the run folder trains again
+SCORED = ("benchmark.csv", "benchmark.md", "benchmark_runs.csv", "trajectories.png")
+
+
+def reopen(names: list[str], runs: Path | None = None, jobs: Path | None = None,
+           budget: Path | None = None) -> list[Path]:
+    """Recorded jobs back to training at a higher budget (a probe's rule raised it). Each
+    record ``jobs/<job>`` moves to ``budget/<job>-<F>M/`` (F: its frames in millions, with
+    the run's learning curve and trajectories: the scores that raised the budget), the run
+    folder's scores to its ``scored-<F>M/``, and its checkpoint is parked
+    (:func:`park_job`), so the next ``--run --frames <more>`` resumes the job, here or on a
+    fresh clone. Needs the run folder's checkpoint (``runs/<job>``; a record keeps none).
+    Returns the budget folders written."""
+    runs, jobs, budget = runs or RUNS, jobs or JOBS, budget or BUDGET
+    from omegaconf import OmegaConf
+
+    plan = []
+    for name in names:  # check every job before moving any
+        record, out = jobs / name, runs / name
+        if not (record / "benchmark.csv").is_file():
+            valid = sorted(p.parent.name for p in jobs.glob("*/benchmark.csv"))
+            raise SystemExit(f"[paper_tables] --reopen {name}: {record} holds no finished "
+                             f"record; valid are {valid}")
+        cfg = OmegaConf.load(record / ".hydra" / "config.yaml")
+        algo, frames = str(cfg.algo.name), int(cfg.algo.total_frames)
+        if not (out / f"{algo}.pt").is_file():
+            raise SystemExit(f"[paper_tables] --reopen {name}: no checkpoint {out / algo}.pt "
+                             "to resume (records keep none: reopen where the job ran)")
+        dest = budget / f"{name}-{frames / 1e6:.2f}M"
+        if dest.exists():
+            raise SystemExit(f"[paper_tables] --reopen {name}: {dest} exists already")
+        plan.append((record, out, algo, frames, dest))
+    moved = []
+    for record, out, algo, frames, dest in plan:
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        shutil.move(record, dest)
+        scored = out / f"scored-{frames / 1e6:.2f}M"
+        scored.mkdir(exist_ok=True)
+        for rel in SCORED:
+            if (out / rel).is_file():
+                shutil.move(out / rel, scored / rel)
+        for rel in ("learning_curve.png", "trajectories.png"):
+            for src in (out / rel, scored / rel):
+                if src.is_file() and not (dest / rel).exists():
+                    shutil.copy2(src, dest / rel)
+        park_job(out, record / UNFINISHED, algo)
+        print(f"[paper_tables] {record.name}: record at {frames} frames moved to {dest}; "
+              f"its checkpoint parked to train on", flush=True)
+        moved.append(dest)
+    return moved
+
+
 def recorded_settings(record: Path) -> dict:
     """A recorded job's frames, evaluation runs and robots, and recipe (``record.json``'s;
     v1 without one: those jobs predate it)."""
@@ -465,6 +522,9 @@ def main() -> None:
     parser.add_argument("--park", action="store_true",
                         help="copy unfinished jobs' checkpoints to paper_jobs/<job>/"
                              "unfinished/ to commit (a sweep stopped another way)")
+    parser.add_argument("--reopen", default=None,
+                        help="comma-separated recorded jobs (e.g. h1-unified-seed0) to train "
+                             "on at a raised budget: record to paper_budget/, checkpoint parked")
     parser.add_argument("--seeds", default="0", help="training seeds of every study")
     parser.add_argument("--recipe", choices=sorted(RECIPES), default="v2",
                         help="the teachers' hiking recipe (learn_hike --recipe): v2, the "
@@ -482,6 +542,9 @@ def main() -> None:
     specs = [t for t in PAPER_TABLES if t.name in args.tables]
     if args.park:
         park()
+        return
+    if args.reopen:
+        reopen(args.reopen.split(","))
         return
     if args.run:
         if not args.frames:

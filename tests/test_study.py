@@ -442,3 +442,51 @@ def test_a_job_at_the_end_of_its_window_checkpoints_on_sigterm(tmp_path) -> None
     assert not mark.exists()
     with pytest.raises(subprocess.CalledProcessError):
         paper_tables.launch([sys.executable, "-c", "raise SystemExit(3)"], None, None)
+
+
+def test_reopen_sends_a_recorded_probe_job_back_to_training_at_a_raised_budget(
+        tmp_path, monkeypatch) -> None:
+    """``--reopen`` (issue 47's budget rule raised the frames after a probe): the record moves
+    to paper_budget/<job>-<F>M/ with the run's curve, the run folder's scores move aside and
+    its checkpoint is parked, so a fresh clone's ``--run --frames <more>`` resumes the job.
+    Every job is checked before any moves. Done by hand twice before (2026-12-06)."""
+    import shutil
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments"))
+    import paper_tables
+
+    records, runs, budget = tmp_path / "paper_jobs", tmp_path / "runs", tmp_path / "budget"
+    monkeypatch.setattr(paper_tables, "JOBS", records)
+    monkeypatch.setattr(paper_tables, "RUNS", runs)
+    for folder in (records / "h1-unified-seed0", runs / "h1-unified-seed0",
+                   records / "h1-rma_b-seed0"):
+        write_job(folder, folder.name.split("-")[1], 0, {"overall": per_run([40.0, 42.0])})
+    out = runs / "h1-unified-seed0"
+    (out / "unified.pt").write_bytes(b"weights at 1000 frames")
+    (out / "train.csv").write_text("iteration,frames_per_s\n1,50\n")
+    (out / "learning_curve.png").write_bytes(b"png")
+    with pytest.raises(SystemExit, match="h1-ep_h-seed0: .* no finished record; valid are "
+                                         r"\['h1-rma_b-seed0', 'h1-unified-seed0'\]"):
+        paper_tables.reopen(["h1-unified-seed0", "h1-ep_h-seed0"], runs, records, budget)
+    with pytest.raises(SystemExit, match="h1-rma_b-seed0: no checkpoint"):
+        paper_tables.reopen(["h1-unified-seed0", "h1-rma_b-seed0"], runs, records, budget)
+    assert (records / "h1-unified-seed0" / "benchmark.csv").is_file()  # nothing moved
+    dest = budget / "h1-unified-seed0-0.00M"
+    assert paper_tables.reopen(["h1-unified-seed0"], runs, records, budget) == [dest]
+    assert {"benchmark.csv", "learning_curve.png"} <= {p.name for p in dest.iterdir()}
+    assert not (out / "benchmark.csv").exists()
+    assert (out / "scored-0.00M" / "benchmark.csv").is_file()
+    parked = records / "h1-unified-seed0" / "unfinished"
+    assert (parked / "unified.pt").read_bytes() == b"weights at 1000 frames"
+    with pytest.raises(SystemExit, match="no finished record"):  # reopened already
+        paper_tables.reopen(["h1-unified-seed0"], runs, records, budget)
+    shutil.rmtree(runs)  # a fresh clone: the next sweep resumes from the parked checkpoint
+    calls = []
+    monkeypatch.setattr(paper_tables, "launch",
+                        lambda cmd, log, deadline, evaluating=None: calls.append(cmd) or False)
+    assert paper_tables.run_job("h1-unified-seed0", "h1", "unified", 0, frames=2000,
+                                eval_runs=2, overrides=[]) is None
+    assert f"resume={runs / 'h1-unified-seed0' / 'unified.pt'}" in calls[0]
+    assert "algo.total_frames=2000" in calls[0]
