@@ -429,7 +429,7 @@ def reopen(names: list[str], runs: Path | None = None, jobs: Path | None = None,
         for rel in SCORED:
             if (out / rel).is_file():
                 shutil.move(out / rel, scored / rel)
-        for rel in ("learning_curve.png", "trajectories.png"):
+        for rel in ("benchmark.md", "learning_curve.png", "trajectories.png"):
             for src in (out / rel, scored / rel):
                 if src.is_file() and not (dest / rel).exists():
                     shutil.copy2(src, dest / rel)

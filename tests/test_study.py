@@ -467,6 +467,7 @@ def test_reopen_sends_a_recorded_probe_job_back_to_training_at_a_raised_budget(
     (out / "unified.pt").write_bytes(b"weights at 1000 frames")
     (out / "train.csv").write_text("iteration,frames_per_s\n1,50\n")
     (out / "learning_curve.png").write_bytes(b"png")
+    (out / "benchmark.md").write_text("the table")
     with pytest.raises(SystemExit, match="h1-ep_h-seed0: .* no finished record; valid are "
                                          r"\['h1-rma_b-seed0', 'h1-unified-seed0'\]"):
         paper_tables.reopen(["h1-unified-seed0", "h1-ep_h-seed0"], runs, records, budget)
@@ -475,7 +476,8 @@ def test_reopen_sends_a_recorded_probe_job_back_to_training_at_a_raised_budget(
     assert (records / "h1-unified-seed0" / "benchmark.csv").is_file()  # nothing moved
     dest = budget / "h1-unified-seed0-0.00M"
     assert paper_tables.reopen(["h1-unified-seed0"], runs, records, budget) == [dest]
-    assert {"benchmark.csv", "learning_curve.png"} <= {p.name for p in dest.iterdir()}
+    assert {"benchmark.csv", "benchmark.md", "learning_curve.png"} <= {
+        p.name for p in dest.iterdir()}
     assert not (out / "benchmark.csv").exists()
     assert (out / "scored-0.00M" / "benchmark.csv").is_file()
     parked = records / "h1-unified-seed0" / "unfinished"
