@@ -28,7 +28,8 @@ job starts after it, a job training at it checkpoints and is parked) or with ``-
 ``--reopen <job>,...`` sends recorded jobs back to training when a probe's rule raises the
 budget: each record moves to ``paper_budget/<job>-<F>M/`` (kept as the budget's evidence),
 and the job's checkpoint is parked, so the next ``--run --frames <more>`` resumes it.
-The studies' tables are then written from the records. Without ``--run`` the tables are
+The studies' tables are then written from the records, each once all its jobs are
+recorded (until then it keeps its last complete table). Without ``--run`` the tables are
 read from ``experiments/results/<study>/table.csv``; a study not run yet is listed with the
 command that runs it.
 
@@ -186,6 +187,15 @@ def planned_jobs(specs, seeds: list[int], main: bool = False,
                              f"{', '.join(valid)}")
         jobs = {k: v for k, v in jobs.items() if f"{v[0]}-{v[1]}" in only}
     return jobs
+
+
+def unrecorded(grid: dict[str, list[str]], seeds: list[int]) -> list[str]:
+    """The jobs of a study's ``grid`` at ``seeds`` with no record in ``paper_jobs/`` yet: its
+    table waits for them, since a table from some of its jobs would replace a complete one
+    (a sweep with ``--minutes`` leaves jobs to later sessions)."""
+    return [f"{robot}-{algo}-seed{seed}" for robot in grid["robot.name"]
+            for algo in grid["algo.name"] for seed in seeds
+            if not (JOBS / f"{robot}-{algo}-seed{seed}" / "benchmark.csv").is_file()]
 
 
 def main_grid() -> dict[str, list[str]]:
@@ -558,6 +568,11 @@ def main() -> None:
             return
         chosen = [(s.study, study_grid(s.study)) for s in specs]
         for study, grid in chosen + ([(MAIN.study, main_grid())] if main_too else []):
+            missing = unrecorded(grid, seeds)
+            if missing:  # a windowed sweep: its table keeps the last complete study's
+                print(f"[paper_tables] {study}: table kept, waiting for "
+                      f"{', '.join(missing)}", flush=True)
+                continue
             study_table(JOBS, RESULTS / study, study,
                         select={**grid, "seed": [str(x) for x in seeds]})
     lines = ["# The paper's study at CPU scale", "",

@@ -10,7 +10,7 @@ import pytest
 from omegaconf import OmegaConf
 
 from legoh.eval.metrics import METRICS, summarize, write_csv, write_runs_csv
-from legoh.eval.study import pool, study_table
+from legoh.eval.study import pool, read_study_csv, study_table
 
 
 def write_job(folder, algo: str, seed: int, runs: dict[str, list[dict]],
@@ -492,3 +492,40 @@ def test_reopen_sends_a_recorded_probe_job_back_to_training_at_a_raised_budget(
                                 eval_runs=2, overrides=[]) is None
     assert f"resume={runs / 'h1-unified-seed0' / 'unified.pt'}" in calls[0]
     assert "algo.total_frames=2000" in calls[0]
+
+
+def test_a_windowed_sweep_keeps_the_tables_of_studies_with_unrecorded_jobs(tmp_path,
+                                                                          monkeypatch):
+    """A sweep that ends its ``--minutes`` with jobs left writes a study's table only once
+    every job of it is recorded. Failed before: the 6M sweep's one finished job replaced
+    the complete 600k tables of Tables 1 and 2 with one-row tables, then stopped with
+    FileNotFoundError at a study with no finished job."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments"))
+    import paper_tables
+
+    records, results = tmp_path / "paper_jobs", tmp_path / "results"
+    write_job(records / "h1-unified-seed0", "unified", 0, {"overall": per_run([60.0, 62.0])})
+    kept = results / "ablation_temporal" / "table.csv"
+    kept.parent.mkdir(parents=True)
+    kept.write_text("the complete table of an earlier budget\n", encoding="utf-8")
+    monkeypatch.setattr(paper_tables, "JOBS", records)
+    monkeypatch.setattr(paper_tables, "RESULTS", results)
+    monkeypatch.setattr(paper_tables, "run_jobs", lambda *a, **k: None)  # the window ended
+    monkeypatch.setattr(sys, "argv", ["paper_tables.py", "--run", "--frames", "1000",
+                                      "--seeds", "0"])
+    paper_tables.main()
+    assert kept.read_text(encoding="utf-8") == "the complete table of an earlier budget\n"
+    assert sorted(p.name for p in results.iterdir()) == ["ablation_temporal",
+                                                          "paper_tables.md"]
+    assert paper_tables.unrecorded({"robot.name": ["h1"], "algo.name": ["unified",
+                                    "unified_ct"]}, [0]) == ["h1-unified_ct-seed0"]
+    write_job(records / "h1-unified_ct-seed0", "unified_ct", 0,
+              {"overall": per_run([40.0, 42.0])})
+    monkeypatch.setattr(sys, "argv", ["paper_tables.py", "--run", "--frames", "1000",
+                                      "--seeds", "0", "--tables", "table1"])
+    paper_tables.main()  # Table 1's jobs are all recorded now: its table is written
+    table = read_study_csv(kept)["overall"]
+    assert set(table) == {"unified", "unified_ct"} and table["unified"]["SR"][0] == 61.0
