@@ -128,9 +128,10 @@ def students_section() -> list[str]:
         lines += [f"### {robot.upper()} student, {stage} (`pretrained/{card['file']}`)", "",
                   f"{card['frames']:,} frames, {minutes} minutes of stage-2 training on a "
                   f"2-core CPU, {card.get('origin', '')} (commit `{card['commit']}`, run "
-                  f"`{card['run']}`). SR beside its oracle on the hiking protocol (robots "
-                  "per level and runs as each card says):", "",
-                  "| Category | SR student | SR its oracle | TC student | TR student | "
+                  f"`{card['run']}`). SR beside the shipped oracle (the line above says "
+                  "which one taught it) on the hiking protocol (robots per level and runs "
+                  "as each card says):", "",
+                  "| Category | SR student | SR shipped oracle | TC student | TR student | "
                   "FR student |", "|---|---|---|---|---|---|"]
         for cat in [*CATEGORIES, "overall"]:
             if cat in mine:
@@ -184,13 +185,13 @@ def averages_section() -> list[str]:
     lines = ["## Averaged student snapshots", "",
              "SR % of the mean of K snapshots' weights (`learn_student.py --average K`) and, "
              "in brackets, the mean of the snapshots benchmarked within its span "
-             "(`bench.csv`); same benchmark, same seeds.", "",
+             "(`bench.csv`, where the run has one); same benchmark, same seeds.", "",
              "| Run | K | Minutes | RandomMix 0-2 | " + " | ".join(
                  "RandomMix" if c == "randommix" else c.capitalize() for c in CATEGORIES) + " |",
              "|---|---|---|---|" + "---|" * len(CATEGORIES)]
     for path in paths:
-        with open(path.parent / "bench.csv", newline="") as f:
-            snaps = list(csv.DictReader(f))
+        bench = path.parent / "bench.csv"  # absent where no snapshot was benchmarked
+        snaps = list(csv.DictReader(bench.open(newline=""))) if bench.is_file() else []
         with open(path, newline="") as f:
             for row in csv.DictReader(f):
                 lo, hi = float(row["first_iteration"]), float(row["iteration"])

@@ -53,3 +53,24 @@ def test_the_hill_section_sets_each_filmed_student_beside_the_oracle(tmp_path, m
     assert "The shipped H1 oracle on `trail=hill`" in page and "40.0 m on average" in page
     assert "The shipped H1 unified student (from depth)" in page and "21.5 m on" in page
     assert "--hill --stage unified" in page and "hill/unified/hill.mp4" in page
+
+
+def test_an_average_of_a_run_without_benchmarked_snapshots_stands_alone(tmp_path,
+                                                                        monkeypatch):
+    """A run averaged without ``bench.csv`` (its snapshots never benchmarked, as the
+    committed g1-unified-s0-v2lag) gets its row without brackets. Failed before: the page
+    stopped with FileNotFoundError, so docs/results.md could not be rewritten."""
+    import results_page
+
+    run = tmp_path / "learn_student" / "g1-unified-s0-v2lag"
+    run.mkdir(parents=True)
+    cols = ["d_sr", *(f"sr_{c}" for c in results_page.CATEGORIES)]
+    with open(run / "bench_average.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, ["snapshots", "first_iteration", "iteration", "first_minutes",
+                               "minutes", *cols])
+        w.writeheader()
+        w.writerow({"snapshots": 8, "first_iteration": 5, "iteration": 20,
+                    "first_minutes": 6.0, "minutes": 18.0, **{c: 52.0 for c in cols}})
+    monkeypatch.setattr(results_page, "RESULTS", tmp_path)
+    row = next(line for line in results_page.averages_section() if "v2lag" in line)
+    assert row == "| `g1-unified-s0-v2lag` | 8 | 6-18 | " + " | ".join(["52"] * len(cols)) + " |"
