@@ -214,6 +214,8 @@ def plot_training(axes, out: Path, frames_per_iteration: float, categories) -> N
     ``axes[0]``, the falls among ended episodes per category and the randomisation strength
     on ``axes[1]``, against frames (M)."""
     t = read_train(out)
+    hole = np.flatnonzero(np.diff(t["iteration"]) > 1) + 1  # a session's rows lost
+    t = {k: np.insert(v, hole, np.nan) for k, v in t.items()}  # NaN x: the line breaks
     tx = t["iteration"] * frames_per_iteration / 1e6
     for i, c in enumerate(categories):
         if f"level/{c}" in t:

@@ -36,3 +36,26 @@ def test_a_comparison_of_scored_runs_sets_their_benchmarks_side_by_side(tmp_path
     assert "| run | minutes | frames (M) | RandomMix 0-2 | randommix | ditch |" in table
     assert "| h1-unified-s0-pitch55 | 36.0 | 1.31 | 62 (71) |" in table
     assert stem.with_suffix(".png").stat().st_size > 20_000
+
+
+def test_the_training_curve_breaks_where_a_session_lost_its_rows(tmp_path) -> None:
+    """train.csv of learn_hike/g1-s0-v2 lacks iterations 276-1220; the curve breaks there
+    (a NaN in the line's x) instead of drawing a straight line across 12M frames. Failed
+    before: the line ran on without a gap."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+    from campaign import plot_training
+
+    iterations = [*range(1, 41), *range(100, 141)]
+    with open(tmp_path / "train.csv", "w") as f:
+        f.write("iteration,level/gap,fell/gap,level_mean\n")
+        f.writelines(f"{i},{i / 100},0.5,{i / 100}\n" for i in iterations)
+    fig, axes = plt.subplots(1, 2)
+    plot_training(axes, tmp_path, 1000.0, ["gap"])
+    x = axes[0].lines[0].get_xdata()
+    plt.close(fig)
+    assert len(x) == len(iterations) + 1 and np.isnan(x[40])
+    assert np.isfinite(np.delete(x, 40)).all() and x[41] == 0.1  # 100 x 1000 frames
