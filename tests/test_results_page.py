@@ -8,6 +8,17 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "experiments"))
 
 
+def write_average(run: Path, cols: list[str], snapshots: int, sr: float) -> None:
+    """A run's ``bench_average.csv``: one weight mean of ``snapshots`` snapshots over
+    iterations 5-20 (6-18 min), ``sr`` in every column."""
+    with open(run / "bench_average.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, ["snapshots", "first_iteration", "iteration", "first_minutes",
+                               "minutes", *cols])
+        w.writeheader()
+        w.writerow({"snapshots": snapshots, "first_iteration": 5, "iteration": 20,
+                    "first_minutes": 6.0, "minutes": 18.0, **{c: sr for c in cols}})
+
+
 def test_averaged_snapshots_are_set_beside_the_snapshots_they_span(tmp_path, monkeypatch):
     import results_page
 
@@ -19,12 +30,7 @@ def test_averaged_snapshots_are_set_beside_the_snapshots_they_span(tmp_path, mon
         w.writeheader()
         for it, sr in ((10, 20.0), (20, 40.0), (30, 90.0)):  # the last is outside the span
             w.writerow({"iteration": it, **{c: sr for c in cols}})
-    with open(run / "bench_average.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, ["snapshots", "first_iteration", "iteration", "first_minutes",
-                               "minutes", *cols])
-        w.writeheader()
-        w.writerow({"snapshots": 3, "first_iteration": 5, "iteration": 20,
-                    "first_minutes": 6.0, "minutes": 18.0, **{c: 55.0 for c in cols}})
+    write_average(run, cols, snapshots=3, sr=55.0)
     monkeypatch.setattr(results_page, "RESULTS", tmp_path)
     lines = results_page.averages_section()
     row = next(line for line in lines if "h1-unified-s0" in line)
@@ -65,12 +71,7 @@ def test_an_average_of_a_run_without_benchmarked_snapshots_stands_alone(tmp_path
     run = tmp_path / "learn_student" / "g1-unified-s0-v2lag"
     run.mkdir(parents=True)
     cols = ["d_sr", *(f"sr_{c}" for c in results_page.CATEGORIES)]
-    with open(run / "bench_average.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, ["snapshots", "first_iteration", "iteration", "first_minutes",
-                               "minutes", *cols])
-        w.writeheader()
-        w.writerow({"snapshots": 8, "first_iteration": 5, "iteration": 20,
-                    "first_minutes": 6.0, "minutes": 18.0, **{c: 52.0 for c in cols}})
+    write_average(run, cols, snapshots=8, sr=52.0)
     monkeypatch.setattr(results_page, "RESULTS", tmp_path)
     row = next(line for line in results_page.averages_section() if "v2lag" in line)
     assert row == "| `g1-unified-s0-v2lag` | 8 | 6-18 | " + " | ".join(["52"] * len(cols)) + " |"
