@@ -223,15 +223,18 @@ def films_section() -> list[str]:
 def hill_section() -> list[str]:
     """The shipped oracle on the hill trail, and beside it each shipped student filmed there
     (``--hill --stage unified``)."""
-    summaries = [d / "summary.json" for d in (HILL, *sorted(p for p in HILL.glob("*")
-                                                             if p.is_dir()))]
-    summaries = [json.loads(p.read_text()) for p in summaries if p.exists()]
+    robots = sorted(p.stem for p in (ROOT / "conf" / "robot").glob("*.yaml"))
+    bases = [hill_dir(robot, "oracle") for robot in ("h1", *(r for r in robots if r != "h1"))]
+    folders = [d for base in bases for d in (base, *sorted(p for p in base.glob("*")
+                                                           if p.is_dir() and p not in bases))]
+    summaries = [json.loads(p.read_text()) for p in (d / "summary.json" for d in folders)
+                 if p.exists()]
     if not summaries:
         return []
     lines = ["## Zero-shot on a hill trail", ""]
     for s in summaries:
         stage = s.get("stage", "oracle")
-        out = hill_dir(stage)
+        out = hill_dir(s["robot"], stage)
         who = "oracle" if stage == "oracle" else f"{stage} student (from depth)"
         lines += [f"The shipped {s['robot'].upper()} {who} on `trail=hill` (level "
                   f"{s['level']}: {s['length_m']:.0f} m of chained RandomMix, Ditch, Hurdle, "
@@ -242,7 +245,8 @@ def hill_section() -> list[str]:
                   f"robots: {s['mean_distance_m']:.1f} m on average, "
                   f"{s['fell_share'] * 100:.0f} % fell, {s['reached_share'] * 100:.0f} % "
                   "reached the terminus. Written by `python experiments/results_page.py "
-                  f"--hill{'' if stage == 'oracle' else ' --stage ' + stage}`.", "",
+                  f"--hill{'' if s['robot'] == 'h1' else ' --robot ' + s['robot']}"
+                  f"{'' if stage == 'oracle' else ' --stage ' + stage}`.", "",
                   f"[video]({rel(out / 'hill.mp4')})", "",
                   f"![hill filmstrip]({rel(out / 'hill_filmstrip.png')})", "",
                   f"![hill trajectories]({rel(out / 'trajectories.png')})", ""]
@@ -280,10 +284,12 @@ def write_page() -> Path:
     return PAGE
 
 
-def hill_dir(stage: str) -> Path:
-    """Where the hill trail's film and benchmark of a shipped policy go: ``hill/`` for the
-    oracle (as first committed), ``hill/<stage>/`` for a student (``unified``, ...)."""
-    return HILL if stage == "oracle" else HILL / stage
+def hill_dir(robot: str, stage: str) -> Path:
+    """Where the hill trail's film and benchmark of a shipped policy go: ``hill/`` for H1's
+    oracle (as first committed), ``hill/<stage>/`` for its student (``unified``, ...);
+    another robot's under ``hill/<robot>/`` the same way."""
+    base = HILL if robot == "h1" else HILL / robot
+    return base if stage == "oracle" else base / stage
 
 
 def film_hill(robot: str, level: int, robots: int, seconds: float | None = None,
@@ -309,7 +315,7 @@ def film_hill(robot: str, level: int, robots: int, seconds: float | None = None,
     cfg.eval.seconds = seconds
     policy, env_fn = build_actor(cfg, "pretrained")  # what mode=play and mode=eval load
     actor = policy.policy if env_fn is not None else policy
-    out = hill_dir(stage)
+    out = hill_dir(robot, stage)
     out.mkdir(parents=True, exist_ok=True)
     film = render_policy_video(cfg, actor, out / "hill.mp4", level=level,
                                student=policy if env_fn is not None else None)

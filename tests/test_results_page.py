@@ -55,7 +55,17 @@ def test_the_hill_section_sets_each_filmed_student_beside_the_oracle(tmp_path, m
         {**base, "film_distance_m": 9.1, "mean_distance_m": 40.0}))  # no stage: the oracle
     (hill / "unified" / "summary.json").write_text(json.dumps(
         {**base, "stage": "unified", "film_distance_m": 5.5, "mean_distance_m": 21.5}))
+    (hill / "g1" / "unified").mkdir(parents=True)  # G1's pair: hill/g1/, hill/g1/unified/
+    (hill / "g1" / "summary.json").write_text(json.dumps(
+        {**base, "robot": "g1", "film_distance_m": 7.0, "mean_distance_m": 33.3}))
+    (hill / "g1" / "unified" / "summary.json").write_text(json.dumps(
+        {**base, "robot": "g1", "stage": "unified", "film_distance_m": 3.0,
+         "mean_distance_m": 12.5}))
     page = "\n".join(results_page.hill_section())
+    assert page.count("The shipped ") == 4, page  # G1's folder is no H1 student's
+    assert "The shipped G1 oracle on `trail=hill`" in page and "33.3 m on average" in page
+    assert "--hill --robot g1 --stage unified" in page and "hill/g1/unified/hill.mp4" in page
+    assert page.index("H1 unified") < page.index("G1 oracle") < page.index("G1 unified")
     assert "The shipped H1 oracle on `trail=hill`" in page and "40.0 m on average" in page
     assert "The shipped H1 unified student (from depth)" in page and "21.5 m on" in page
     assert "--hill --stage unified" in page and "hill/unified/hill.mp4" in page
