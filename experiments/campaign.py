@@ -227,11 +227,14 @@ def plot_training(axes, out: Path, frames_per_iteration: float, categories) -> N
 
 
 def read_rows(path: Path) -> list[dict]:
-    """A CSV of numbers as rows of floats ([] when the file does not exist)."""
+    """A CSV of numbers as rows of ints and floats ([] when the file does not exist). An
+    integer cell stays an int: read as floats, a resumed run wrote its ``clock.csv`` and
+    ``evals.csv`` back with iterations as ``2989.0``."""
     if not path.exists():
         return []
     with open(path) as f:
-        return [{k: float(v) for k, v in r.items()} for r in csv.DictReader(f)]
+        return [{k: int(v) if v.lstrip("-").isdigit() else float(v) for k, v in r.items()}
+                for r in csv.DictReader(f)]
 
 
 def write_rows(path: Path, rows: list[dict]) -> None:

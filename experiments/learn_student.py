@@ -88,6 +88,7 @@ from legoh.policies.embodiment import LEGACY_FEET, with_checkpoint_body  # noqa:
 from legoh.policies.oracle import load_teacher  # noqa: E402
 from legoh.policies.pretrained import shipped_oracle  # noqa: E402
 from legoh.policies.student import build_student, make_student_env, state_shapes  # noqa: E402
+from legoh.runs import file_lock  # noqa: E402
 from legoh.threads import torch_threads  # noqa: E402
 from legoh.train.unified import train_student  # noqa: E402
 
@@ -247,6 +248,20 @@ def score_teacher(cfg, make_env, path: Path, cache: dict, sha: str,
     return row
 
 
+def teacher_row(cfg, make_env, out: Path, snap: dict) -> dict | None:
+    """:func:`score_teacher` for ``snap``'s teacher, through the run folder's
+    ``teacher.json``, under a lock on it: ``--evaluate`` and ``--average`` started together
+    each scored a teacher missing from it (5 min of a core each); the second now waits and
+    takes the first's row."""
+    cache_path = out / "teacher.json"
+    with file_lock(out / ".teacher.lock"):
+        cache = json.loads(cache_path.read_text()) if cache_path.exists() else {}
+        row = score_teacher(cfg, make_env, Path(snap["teacher"]), cache, snap["teacher_sha"],
+                            out.parent)
+        cache_path.write_text(json.dumps(cache, indent=2))
+    return row
+
+
 def ratios(row: dict, teacher: dict | None) -> dict:
     """The teacher's SRs and the student's ratios to them (NaN where the teacher's is 0)."""
     def ratio(mine: float, theirs: float) -> float:
@@ -307,13 +322,9 @@ def evaluate_snapshots(args) -> None:
     if not any((out / "snapshots").glob("it*.pt")):
         print(f"[learn_student] no snapshots in {out / 'snapshots'}")
         return
-    cache_path = out / "teacher.json"
-    cache = json.loads(cache_path.read_text()) if cache_path.exists() else {}
     make_env = student_eval_env_fn(cfg, student)  # the student's sensors, its state primed
     for _, snap in snapshots_to_score(out, rows, args.bench_every):
-        theirs = score_teacher(cfg, make_env, Path(snap["teacher"]), cache,
-                               snap["teacher_sha"], out.parent)
-        cache_path.write_text(json.dumps(cache, indent=2))
+        theirs = teacher_row(cfg, make_env, out, snap)
         student.policy.load_state_dict(snap["policy"])
         t0 = time.perf_counter()
         row = bench_policy(make_env, student.policy.eval())
@@ -353,12 +364,8 @@ def average_snapshots(args) -> None:
     for snap in snaps:
         student.policy.load_state_dict(snap["policy"])
         averaged.update_parameters(student.policy)
-    cache_path = out / "teacher.json"
-    cache = json.loads(cache_path.read_text()) if cache_path.exists() else {}
     make_env = student_eval_env_fn(cfg, student)
-    theirs = score_teacher(cfg, make_env, Path(snaps[-1]["teacher"]), cache,
-                           snaps[-1]["teacher_sha"], out.parent)
-    cache_path.write_text(json.dumps(cache, indent=2))
+    theirs = teacher_row(cfg, make_env, out, snaps[-1])
     student.policy.load_state_dict(averaged.module.state_dict())
     first, last = snaps[0], snaps[-1]
     saved = save_average(out / f"{args.algo}.pt", student, [s["iteration"] for s in snaps],

@@ -6,6 +6,7 @@ shipped hiker zero-shot on a long "hill" trail.
     python experiments/results_page.py --hill     # first film + benchmark the shipped H1 oracle
                                                   # on a hill trail (experiments/results/hill/)
     python experiments/results_page.py --hill --stage unified   # its student (hill/unified/)
+    python experiments/results_page.py --hill --robot g1 [--stage unified]   # G1's (hill/g1/)
     python experiments/results_page.py --demo forest   # first the README's GIF (docs/img/)
 
 Nothing on the page is typed by hand: every number is read from a file under
@@ -221,8 +222,8 @@ def films_section() -> list[str]:
 
 
 def hill_section() -> list[str]:
-    """The shipped oracle on the hill trail, and beside it each shipped student filmed there
-    (``--hill --stage unified``)."""
+    """Each robot's shipped oracle on the hill trail (H1 first), and beside it each shipped
+    student filmed there (``--hill [--robot R] --stage unified``)."""
     robots = sorted(p.stem for p in (ROOT / "conf" / "robot").glob("*.yaml"))
     bases = [hill_dir(robot, "oracle") for robot in ("h1", *(r for r in robots if r != "h1"))]
     folders = [d for base in bases for d in (base, *sorted(p for p in base.glob("*")

@@ -147,6 +147,26 @@ def run_lock(folder: Path) -> Iterator[Path]:
                 fcntl.flock(f, fcntl.LOCK_UN)
 
 
+@contextlib.contextmanager
+def file_lock(path: Path) -> Iterator[None]:
+    """Hold an exclusive lock on ``path``, waiting while another open holds it.
+
+    For a short read-modify-write of one shared file (a run folder's ``teacher.json``):
+    the second process waits and then reads what the first wrote, where :func:`run_lock`
+    refuses it. Where ``fcntl`` is missing (Windows) nothing is locked.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("a+") as f:
+        if fcntl is not None:
+            fcntl.flock(f, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            if fcntl is not None:
+                fcntl.flock(f, fcntl.LOCK_UN)
+
+
 def wait_for_run(folder: Path) -> bool:
     """Block while another run holds ``folder``'s lock (:func:`run_lock`); True if one did.
 

@@ -59,3 +59,16 @@ def test_the_training_curve_breaks_where_a_session_lost_its_rows(tmp_path) -> No
     plt.close(fig)
     assert len(x) == len(iterations) + 1 and np.isnan(x[40])
     assert np.isfinite(np.delete(x, 40)).all() and x[41] == 0.1  # 100 x 1000 frames
+
+
+def test_a_resumed_campaign_writes_its_clock_back_with_integer_iterations(tmp_path) -> None:
+    """read_rows keeps an integer cell an int, so a resumed run's rewrite of clock.csv keeps
+    ``2989``. Failed before: every cell came back a float and the file said ``2989.0``."""
+    from campaign import read_rows, write_rows
+
+    path = tmp_path / "clock.csv"
+    path.write_text("iteration,minutes\n0,0.0\n2989,85.0195\n")
+    rows = read_rows(path)
+    assert rows[1] == {"iteration": 2989, "minutes": 85.0195}
+    write_rows(path, rows)
+    assert path.read_text().splitlines() == ["iteration,minutes", "0,0.0", "2989,85.0195"]

@@ -228,3 +228,38 @@ def test_a_new_arm_takes_its_teachers_score_from_a_sibling_run(tmp_path) -> None
     with pytest.raises(TypeError):  # no sibling has it: scored (here no env to score in)
         learn_student.score_teacher(cfg, None, other, {}, learn_student.file_hash(other),
                                     siblings=tmp_path)
+
+
+def test_evaluate_and_average_started_together_score_the_teacher_once(tmp_path) -> None:
+    """The second of two processes needing a teacher missing from ``teacher.json`` waits for
+    the first's lock and takes the row it wrote. Failed before: each read the file at start
+    and scored the teacher itself (here: make_env None raises)."""
+    import threading
+
+    sys.path.insert(0, str(ROOT / "experiments"))
+    import hashlib
+
+    import learn_student
+
+    from legoh.runs import file_lock
+
+    args = learn_student.make_parser().parse_args(["--robot", "h1", "--out", str(tmp_path)])
+    cfg = learn_student.bench_config(args, Path("teacher.pt"))
+    teacher = tmp_path / "oracle.pt"
+    teacher.write_bytes(b"a teacher")
+    sha = learn_student.file_hash(teacher)
+    protocol = OmegaConf.to_container(cfg.eval, resolve=True)
+    digest = hashlib.sha256(json.dumps(protocol, sort_keys=True).encode()).hexdigest()[:8]
+    key = f"{sha} {digest} v{learn_student.BENCHMARK_VERSION}"
+    out = tmp_path / "run"
+    out.mkdir()
+    got: list = []
+    with file_lock(out / ".teacher.lock"):  # the first process, scoring
+        second = threading.Thread(target=lambda: got.append(learn_student.teacher_row(
+            cfg, None, out, {"teacher": str(teacher), "teacher_sha": sha})))
+        second.start()
+        second.join(timeout=0.5)
+        assert second.is_alive()  # waits for the first
+        (out / "teacher.json").write_text(json.dumps({key: {"row": {"d_sr": 66.0}}}))
+    second.join(timeout=10)
+    assert got == [{"d_sr": 66.0}]
