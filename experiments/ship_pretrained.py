@@ -50,6 +50,7 @@ from legoh.eval.protocol import PROTOCOL, of_card, of_csv  # noqa: E402
 from legoh.policies.pretrained import PRETRAINED_DIR, benchmark_protocol  # noqa: E402
 
 MAX_BYTES = 10 * 2**20
+SHIP_ROBOTS, SHIP_RUNS = 80, 2  # the shipping protocol's (a card's) robots per level, runs
 RECIPES = {"oracle": "python experiments/learn_hike.py --robot {robot} (a campaign of runs; the "
                      "run folder's summary.md and curve.png)",
            "student": "python experiments/learn_student.py --robot {robot} --algo {stage} (a "
@@ -66,8 +67,8 @@ def main() -> None:
                                       "unless --main-job-only)")
     parser.add_argument("--checkpoint", help="ship this file of the run instead of "
                                              "<run>/<stage>.pt (e.g. an averaged snapshot)")
-    parser.add_argument("--robots", type=int, default=80, help="robots per level and run")
-    parser.add_argument("--runs", type=int, default=2)
+    parser.add_argument("--robots", type=int, default=SHIP_ROBOTS, help="robots per level and run")
+    parser.add_argument("--runs", type=int, default=SHIP_RUNS)
     parser.add_argument("--recipe", help="how it was trained, when not the campaign script's "
                                          "default (e.g. a chain of warm-started runs)")
     parser.add_argument("--minutes", type=float,
@@ -145,6 +146,15 @@ def ship_benchmark(args, export: Path | None = None, checkpoint: str = "pretrain
                     label=f"{args.robot}_{args.stage}", env_fn=env_fn)
 
 
+def candidate_dir(run: Path, src: Path, args) -> Path:
+    """``<run>/ship_protocol_<file stem>``, with ``-runs<N>`` / ``-robots<N>`` where those
+    differ from a card's: a 4-run score is never read as the card's 2-run one."""
+    more = "".join(f"-{k}{v}" for k, v, card in (("runs", args.runs, SHIP_RUNS),
+                                                  ("robots", args.robots, SHIP_ROBOTS))
+                   if v != card)
+    return run / f"ship_protocol_{src.stem}{more}"
+
+
 def candidate(args) -> Path:
     """``--candidate``: the run's checkpoint (or ``--checkpoint``) on the shipping protocol
     into ``<run>/ship_protocol_<file stem>/``, ``pretrained/`` untouched, and
@@ -152,7 +162,7 @@ def candidate(args) -> Path:
     oracle's (the ratio issue 47's bar reads). Shipping it is then the plain command."""
     run = Path(args.run)
     src = Path(args.checkpoint) if args.checkpoint else run / f"{args.stage}.pt"
-    out = run / f"ship_protocol_{src.stem}"
+    out = candidate_dir(run, src, args)
     result = ship_benchmark(args, checkpoint=str(src), out=out)
     columns = {"candidate": result["paths"]["csv"],
                "shipped": PRETRAINED_DIR / f"{args.robot}_{args.stage}_eval" / "benchmark.csv",

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments"))
-from ship_pretrained import beside_shipped, clock_minutes  # noqa: E402
+from ship_pretrained import beside_shipped, candidate_dir, clock_minutes  # noqa: E402
 
 from legoh.eval.protocol import ProtocolMismatch  # noqa: E402
 
@@ -45,3 +45,18 @@ def test_a_candidate_is_tabled_beside_the_shipped_student_and_the_teacher(tmp_pa
     files["shipped"] = bench("old", {"gap": 30.0}, protocol="v1")
     with pytest.raises(ProtocolMismatch):
         beside_shipped(files)
+
+
+def test_a_candidate_scored_on_more_runs_than_a_card_is_named_so(tmp_path):
+    """A candidate's folder names runs and robots that differ from the card's (2 runs, 80
+    robots). Failed before: a 4-run score of pretrained/g1_oracle.pt went to
+    ship_protocol_g1_oracle/, read as the card's protocol."""
+    from types import SimpleNamespace
+
+    src = Path("pretrained/g1_oracle.pt")
+    card = SimpleNamespace(runs=2, robots=80)
+    assert candidate_dir(tmp_path, src, card) == tmp_path / "ship_protocol_g1_oracle"
+    assert (candidate_dir(tmp_path, src, SimpleNamespace(runs=4, robots=80))
+            == tmp_path / "ship_protocol_g1_oracle-runs4")
+    assert (candidate_dir(tmp_path, src, SimpleNamespace(runs=1, robots=16))
+            == tmp_path / "ship_protocol_g1_oracle-runs1-robots16")
