@@ -175,6 +175,24 @@ def test_dagger_mixture_runs_and_logs_its_share(artefacts, tmp_path):
     assert float(rows[0]["dagger/teacher_acted"]) == 1.0
 
 
+def test_imitation_learning_rate_warms_up_and_resumes_on_its_ramp(artefacts, tmp_path):
+    """algo.distill_warmup_iterations=4: the imitation optimiser steps at lr/4, then lr/2;
+    a resumed run goes on along the ramp (3/4 of lr), not from its start. Failed before:
+    every update at lr (a warm start's fresh Adam moved each weight by ~lr at once)."""
+    import csv
+
+    cfg = tiny("unified", artefacts, "algo.distill_warmup_iterations=4", "algo.lr=4e-4")
+    run = train_student(cfg, tmp_path / "a")
+    with run.csv.open() as f:
+        assert [float(r["distill/lr"]) for r in csv.DictReader(f)] == pytest.approx([1e-4, 2e-4])
+    longer = tiny("unified", artefacts, "algo.distill_warmup_iterations=4", "algo.lr=4e-4",
+                  f"algo.total_frames={2 * cfg.algo.total_frames}")
+    resumed = train_student(longer, tmp_path / "b", resume=str(run.checkpoint))
+    with resumed.csv.open() as f:
+        rates = [float(r["distill/lr"]) for r in csv.DictReader(f)]
+    assert rates[-2:] == pytest.approx([3e-4, 4e-4])
+
+
 def test_on_iteration_sees_the_student_and_can_stop_training(artefacts, tmp_path):
     """train_student's hook gets the student's own policy (not DAgger's mixture with the
     teacher) after each iteration; True stops the run with a checkpoint."""

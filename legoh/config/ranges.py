@@ -90,6 +90,7 @@ RANGES: list[tuple[str, Range]] = [
     ("algo.distill_share", Range(0, 1, open_low=True)),
     ("algo.prior_pretrain_*", NON_NEGATIVE),  # 0: no pre-training of the prior
     ("algo.dagger_mix_iterations", NON_NEGATIVE),  # 0: the student always acts
+    ("algo.distill_warmup_iterations", NON_NEGATIVE),  # 0: the imitation lr from the start
     ("algo.*", COUNT),  # num_envs, steps, frames, epochs, minibatches, every-N, threads
     # eval
     ("eval.seconds", POSITIVE), ("eval.levels", NON_NEGATIVE), ("eval.seed", NON_NEGATIVE),

@@ -92,6 +92,15 @@ class StudentDistillation(Algorithm):
         if self.mix is not None:
             self.mix.beta.fill_(teacher_share(self.updates, self.algo.dagger_mix_iterations))
 
+    def _set_distill_lr(self) -> float:
+        """The imitation optimiser's learning rate for this update: ``algo.lr``, ramped
+        linearly over the first ``algo.distill_warmup_iterations`` updates."""
+        warmup = self.algo.distill_warmup_iterations
+        lr = self.algo.lr * (min(1.0, (self.updates + 1) / warmup) if warmup > 0 else 1.0)
+        for group in self.optimizers["distill"].param_groups:
+            group["lr"] = lr
+        return lr
+
     def update(self, batch) -> dict[str, float]:
         """Labels, prior steps, PPO on the student's own steps, then the imitation losses."""
         algo = self.algo
@@ -111,6 +120,7 @@ class StudentDistillation(Algorithm):
                                         scale=algo.weights.w1,
                                         lagged=overlapped(self.cfg)))
         clock["ppo"] = time.perf_counter()
+        stats["distill/lr"] = self._set_distill_lr()
         stats.update(distill(self.student, batch, self.cfg, self.optimizers["distill"],
                              self.prior_loss, self.gen))
         clock["distill"] = time.perf_counter()
