@@ -175,20 +175,33 @@ def candidate(args) -> Path:
     return path
 
 
+def runs_of(path: Path) -> int | None:
+    """The runs behind ``benchmark.csv`` ``path`` (its ``benchmark_runs.csv``), None when
+    that file is not beside it."""
+    runs = Path(path).with_name("benchmark_runs.csv")
+    if not runs.is_file():
+        return None
+    with runs.open(newline="", encoding="utf-8") as f:
+        return len({row["run"] for row in csv.DictReader(f)})
+
+
 def beside_shipped(files: dict[str, Path]) -> str:
     """A Markdown table: each category's SR (mean ± std over runs) from each benchmark.csv
-    of ``files``, and the candidate's ratio to the teacher's where both are there."""
+    of ``files``, each column with its runs, and the candidate's ratio to the teacher's
+    where both are there on as many runs (a ratio across run counts mixes protocols)."""
     from legoh.eval.protocol import same_protocol
     from legoh.eval.study import read_rows
 
     same_protocol({name: of_csv(path) for name, path in files.items()})
+    runs = {name: runs_of(path) for name, path in files.items()}
     rows: dict[str, dict[str, tuple[float, float]]] = {}
     for name, path in files.items():
         for cat, metrics in read_rows(path).items():
             rows.setdefault(cat, {})[name] = metrics["SR"]
-    ratio = "candidate" in files and "teacher" in files
-    head = ["category", *(f"{n} SR (%)" for n in files)] + (["candidate / teacher"]
-                                                             if ratio else [])
+    both = "candidate" in files and "teacher" in files
+    ratio = both and runs["candidate"] == runs["teacher"]
+    head = ["category", *(f"{n} SR (%)" + (f", {runs[n]} runs" if runs[n] else "")
+                          for n in files)] + (["candidate / teacher"] if ratio else [])
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for cat, got in rows.items():
         cells = [cat] + [f"{got[n][0]:.2f} ± {got[n][1]:.2f}" if n in got else "–"
@@ -197,6 +210,10 @@ def beside_shipped(files: dict[str, Path]) -> str:
             cells.append(f"{got['candidate'][0] / got['teacher'][0]:.2f}"
                          if got.get("teacher", (0,))[0] else "–")
         lines.append("| " + " | ".join(cells) + " |")
+    if both and not ratio:
+        lines.append(f"\nNo candidate / teacher ratio: {runs['candidate']} runs against "
+                     f"{runs['teacher']}; score the teacher on as many (`--candidate "
+                     f"--checkpoint pretrained/<robot>_oracle.pt --stage oracle --runs N`).")
     return "\n".join(lines) + "\n"
 
 

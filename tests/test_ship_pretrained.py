@@ -60,3 +60,28 @@ def test_a_candidate_scored_on_more_runs_than_a_card_is_named_so(tmp_path):
             == tmp_path / "ship_protocol_g1_oracle-runs4")
     assert (candidate_dir(tmp_path, src, SimpleNamespace(runs=1, robots=16))
             == tmp_path / "ship_protocol_g1_oracle-runs1-robots16")
+
+
+def test_a_ratio_to_the_teacher_is_read_on_as_many_runs(tmp_path):
+    """Each column names its runs (benchmark_runs.csv beside the file); a 4-run candidate
+    gets no ratio to a 2-run teacher. Failed before: 58.5 % on 4 runs over 66.5 % on 2 read
+    0.88 x in one column, unmarked (journal 2026-12-12)."""
+    def bench(name: str, sr: float, runs: int) -> Path:
+        folder = tmp_path / name
+        folder.mkdir()
+        (folder / "benchmark.csv").write_text(
+            f"category,SR (%) ↑ mean,SR (%) ↑ std,protocol\noverall,{sr},2.0,v2\n",
+            encoding="utf-8")
+        (folder / "benchmark_runs.csv").write_text(
+            "run,category,SR (%) ↑,protocol\n"
+            + "".join(f"{r},overall,{sr},v2\n" for r in range(runs)), encoding="utf-8")
+        return folder / "benchmark.csv"
+
+    files = {"candidate": bench("c", 58.5, 4), "shipped": bench("s", 58.0, 2),
+             "teacher": bench("t", 66.5, 2)}
+    table = beside_shipped(files)
+    assert table.splitlines()[0] == ("| category | candidate SR (%), 4 runs | shipped SR (%), "
+                                     "2 runs | teacher SR (%), 2 runs |")
+    assert "0.88" not in table and "No candidate / teacher ratio: 4 runs against 2" in table
+    files["teacher"] = bench("t4", 67.2, 4)
+    assert beside_shipped(files).splitlines()[2].endswith("| 0.87 |")
