@@ -57,7 +57,8 @@ class DeployedStudent(nn.Module):
     def act(self, goal: Tensor, proprio: Tensor, proprio_history: Tensor, held: Tensor
             ) -> Tensor:
         out = self.navigator.act(self._obs(None, goal, proprio, proprio_history), held)
-        loc, _ = self.head(proprio, out["latent"], out["nav_goal"])
+        extra = [out["history_latent"]] if "history_latent" in out else []
+        loc, _ = self.head(proprio, out["latent"], out["nav_goal"], *extra)
         return loc
 
     def forward(self, depth: Tensor, goal: Tensor, proprio: Tensor, proprio_history: Tensor,

@@ -21,6 +21,7 @@ EXPERT_GOALS = ("expert", "goals")  # (3, 2) next three expert waypoints, robot 
 ACTION = "action"
 TEACHER_ACTION = ("teacher", "action")
 TEACHER_LATENT = ("teacher", "latent")
+TEACHER_PRIV_LATENT = ("teacher", "priv_latent")  # (20,) the oracle's privileged latent
 # (1,) bool: the teacher's action was executed on this step (DAgger's mixture, train/dagger.py)
 TEACHER_ACTED = ("teacher", "acted")
 
@@ -28,6 +29,8 @@ TEACHER_ACTED = ("teacher", "acted")
 # locomotion module and the distillation losses
 IS_INIT = "is_init"  # (1,) bool: first step of an episode (torchrl's InitTracker)
 STUDENT_LATENT = ("student", "latent")  # (32,) z_uni, regresses the oracle's z_tea
+# (20,) estimate of the oracle's privileged latent from the proprio history (algo.history_latent)
+HISTORY_LATENT = ("student", "history_latent")
 NAV_GOAL = ("student", "nav_goal")  # (G,) what locomotion sees: (delta_g0, g1) for LEGO-H
 GOAL_CORRECTION = ("student", "goal_correction")  # (2,) delta_g0, robot yaw frame
 NEAR_GOALS = ("student", "near_goals")  # (3, 2) predicted g1..g3, robot yaw frame, m

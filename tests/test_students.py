@@ -20,14 +20,19 @@ def cfg():
     return compose_config("trail=flat", "algo=unified", "env.depth.every=5")
 
 
-def build(cfg, name):
+# each student, and LEGO-H whose locomotion reads a history latent too (algo.history_latent)
+VARIANTS = [*sorted(STUDENTS), "lego_h+history"]
+
+
+def build(cfg, variant):
+    name, _, extra = variant.partition("+")
     algo = {"lego_h": "unified", "ep_h": "ep_h", "rma_b": "rma_b", "rma_h": "rma_h"}[name]
     run_cfg = compose_config("trail=flat", f"algo={algo}")
     probe = make_student_env(run_cfg, 1, ((1,), 1))
     far = run_cfg.algo.depth_far or run_cfg.env.depth.far
     dims = StudentDims.from_spec(probe.observation_spec, depth_far=far)
     probe.close()
-    student = make_student(name, dims, 10, 4.8)
+    student = make_student(name, dims, 10, 4.8, history_latent=extra == "history")
     env = make_student_env(run_cfg, NUM_ENVS, state_shapes(student))
     return run_cfg, student, env
 
@@ -42,7 +47,7 @@ def deterministic_rollout(student, env):
         env.close()
 
 
-@pytest.mark.parametrize("name", sorted(STUDENTS))
+@pytest.mark.parametrize("name", VARIANTS)
 def test_student_rollout_keys_shapes_and_tiling(cfg, name):
     run_cfg, student, env = build(cfg, name)
     try:
@@ -58,6 +63,9 @@ def test_student_rollout_keys_shapes_and_tiling(cfg, name):
     assert td[keys.NAV_GOAL].shape == (NUM_ENVS, STEPS, nav.nav_dim)
     assert td[keys.NEAR_GOALS].shape == (NUM_ENVS, STEPS, nav.num_goals, 2)
     assert torch.isfinite(td["action"]).all()
+    assert (keys.HISTORY_LATENT in td.keys(True)) == name.endswith("+history")
+    if nav.history_dim:
+        assert td[keys.HISTORY_LATENT].shape == (NUM_ENVS, STEPS, 20)
     if nav.uses_depth:
         fresh = td[keys.DEPTH_FRESH].reshape(NUM_ENVS, STEPS)[0]
         assert fresh[0] and fresh.sum() < STEPS  # a frame at reset, then every 5 steps
@@ -67,22 +75,27 @@ def test_student_rollout_keys_shapes_and_tiling(cfg, name):
             assert same == (not bool(fresh[t]) and not bool(td[keys.IS_INIT][0, t]))
 
 
-@pytest.mark.parametrize("name", sorted(STUDENTS))
+@pytest.mark.parametrize("name", VARIANTS)
 def test_unroll_reproduces_collection_and_gradients_reach_every_parameter(cfg, name):
     run_cfg, student, env = build(cfg, name)
     td = deterministic_rollout(student, env)
     out = unroll(student.navigation, td)
     torch.testing.assert_close(out[keys.STUDENT_LATENT], td[keys.STUDENT_LATENT])
     torch.testing.assert_close(out[keys.NAV_GOAL], td[keys.NAV_GOAL])
+    history = student.navigation.navigator.history_dim
+    if history:
+        torch.testing.assert_close(out[keys.HISTORY_LATENT], td[keys.HISTORY_LATENT])
 
     # labels of the right shapes stand in for the oracle's
     td.set(keys.TEACHER_ACTION, torch.randn_like(td["action"]))
     td.set(keys.TEACHER_LATENT, torch.rand_like(td[keys.STUDENT_LATENT]) - 0.5)
+    td.set(keys.TEACHER_PRIV_LATENT, torch.rand(NUM_ENVS, STEPS, 20))
     head_in = out.clone(recurse=False)
     head_in.set(keys.PROPRIO, td[keys.PROPRIO])
     loc = student.locomotion.module[0](head_in).get(LOC)
     w = run_cfg.algo.weights
     loss = distillation_loss(out, loc, td, w)
+    assert ("loss_priv_latent" in loss.keys()) == bool(history)
     total = sum(v for k, v in loss.items() if k.startswith("loss_"))
     # PPO trains the std: the log-likelihood of the collected actions reaches it
     dist = student.locomotion.get_dist(td.select(*student.locomotion.in_keys).clone())
@@ -124,6 +137,9 @@ def test_unknown_student_is_refused(cfg):
         make_student("ep-h", dims, 10, 4.8)
     with pytest.raises(ValueError, match="needs depth frames"):
         make_student("ep_h", StudentDims(proprio=39, history=10, depth=None), 10, 4.8)
+    with pytest.raises(ValueError, match="algo.history_latent=true applies to student "
+                                         "'lego_h' only, got algo.student='rma_b'"):
+        make_student("rma_b", dims, 10, 4.8, history_latent=True)
 
 
 def test_unroll_encodes_fresh_frames_ahead_with_the_same_result(cfg, monkeypatch):

@@ -11,6 +11,7 @@ import torch
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
+from legoh import keys
 from legoh.app import export
 from legoh.checkpoint import CheckpointError, load_checkpoint
 from legoh.config import validate
@@ -19,6 +20,7 @@ from legoh.eval.cli import build_actor
 from legoh.eval.metrics import METRICS
 from legoh.eval.study import STUDIES, study_table
 from legoh.export import load_exported
+from legoh.modules.actor_critic import LOC
 from legoh.train.teacher import ensure_oracle, oracle_artefact_dir
 from legoh.train.unified import train_student
 from tests.conftest import CONF_DIR, compose_config
@@ -244,6 +246,55 @@ def test_a_new_student_starts_from_a_students_weights(artefacts, tmp_path, capsy
     assert warm.iterations == 1
     with pytest.raises(CheckpointError, match="student 'lego_h'"):
         train_student(tiny("rma_b", artefacts, f"init={first.checkpoint}"), tmp_path / "d")
+
+
+def test_a_history_latent_student_starts_from_one_without(artefacts, tmp_path, capsys):
+    """algo.history_latent=true warm-started from a student without the latent: every
+    weight loaded, the latent's input columns zero (it acts as the loaded student), its
+    encoder the teacher's adaptation module; the latent's regression is logged; resuming
+    it without the flag is refused, and using it restores the flag."""
+    from legoh.eval.cli import for_checkpoint
+    from legoh.modules.students import PRIV_LATENT_DIM
+    from legoh.policies.student import (
+        build_student,
+        load_student_adding_history,
+        make_student_env,
+        state_shapes,
+        student_from_checkpoint,
+    )
+
+    plain_run = train_student(tiny("unified", artefacts), tmp_path / "a")
+    teacher = plain_run.algorithm.teacher_path
+    cfg = tiny("unified", artefacts, "algo.history_latent=true")
+    plain = student_from_checkpoint(tiny("unified", artefacts), plain_run.checkpoint)
+    grown = build_student(cfg)
+    load_student_adding_history(cfg, plain_run.checkpoint, grown, teacher)
+    adaptation = load_checkpoint(teacher)["models"]["adaptation"]
+    for key, value in grown.navigation.navigator.history.state_dict().items():
+        torch.testing.assert_close(value, adaptation[f"module.{key}"])
+    env = make_student_env(cfg, 3, state_shapes(grown))
+    try:
+        td = env.reset()
+    finally:
+        env.close()
+    td.set(keys.PROPRIO_HISTORY, torch.randn_like(td[keys.PROPRIO_HISTORY]))
+    with torch.no_grad():
+        out = grown.policy(td.clone())
+        assert out[keys.HISTORY_LATENT].abs().sum() > 0
+        torch.testing.assert_close(out[LOC], plain.policy(td.clone())[LOC])
+
+    stats = {}
+    run = train_student(tiny("unified", artefacts, f"init={plain_run.checkpoint}",
+                             "algo.history_latent=true"), tmp_path / "b",
+                        on_iteration=lambda it, s, policy: stats.update(s) or True)
+    assert "has no history latent" in capsys.readouterr().out
+    assert stats["distill/loss_priv_latent"] > 0
+    assert grown.navigation.navigator.history_dim == PRIV_LATENT_DIM
+    with pytest.raises(CheckpointError, match="algo.history_latent=True, but this run has "
+                                              "algo.history_latent=False"):
+        train_student(tiny("unified", artefacts), tmp_path / "c", resume=str(run.checkpoint))
+    own, _ = for_checkpoint(tiny("unified", artefacts), str(run.checkpoint))
+    assert own.algo.history_latent is True
 
 
 def test_checkpoint_of_another_student_is_refused(artefacts, tmp_path):

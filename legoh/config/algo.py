@@ -96,6 +96,10 @@ class LossWeights:
     w8: float = 2.0  # HLM: c_mt x masked triplet + c_ms x cosine similarity
     c_mt: float = 0.85  # masked triplet share of HLM
     c_ms: float = 0.15  # cosine-similarity share of HLM
+    # ours, not Table 7: with algo.history_latent, the history latent vs the oracle's
+    # privileged latent (MSE). G1's latent varies by 0.011 a dimension under Table 5 and
+    # its oracle's adaptation module leaves 0.0036 (measured): small, so weighed as w7
+    w_priv: float = 100.0
 
 
 @dataclass
@@ -116,6 +120,12 @@ class UnifiedConfig(OracleConfig):
     core: str = "gru"  # recurrent goal adaptation core: gru | transformer
     prior: str = "hlm"  # action prior: hlm (masked VAE) | vae (vanilla VAE) | none
     ppo: bool = True  # RL on the student's own rollouts (EP-H and RMA-* distill only)
+    # LEGO-H's locomotion also reads a latent of the proprioception history (the oracle's
+    # adaptation module's shape, started from its weights on a warm start, regressing the
+    # oracle's privileged latent: weights.w_priv). Off: the paper's inputs as we read them
+    # (proprio, z_uni, delta_g0, g1), which leave the student no way to tell the physics
+    # draws of Table 5 apart (G1's shortfall, journal 2026-12-13). docs/unified.md
+    history_latent: bool = False
     num_envs: int = 32
     total_frames: int = 100_000  # env steps of stage 2 (~ minutes on a 2-core CPU)
     # the action std every student acts with, held fixed (not trained): the same exploration

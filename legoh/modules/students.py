@@ -41,6 +41,9 @@ from legoh.modules.actor_critic import LOC, LOG_PROB, SCALE, ConcatMLP, Gaussian
 from legoh.modules.encoders import HistoryConvEncoder, mlp
 
 LATENT_DIM = 32  # z_uni has the size of the oracle's z_tea (scandot encoder output)
+# the history latent (algo.history_latent) has the size and the encoder shape of the oracle's
+# privileged latent and adaptation module (OracleNetConfig: priv_encoder[-1], channels)
+PRIV_LATENT_DIM, HISTORY_CHANNELS = 20, 10
 EP_DEPTH_RANGE = 2.0  # m: EP-H's short depth range (Extreme Parkour clips depth at 2 m)
 
 
@@ -83,6 +86,7 @@ class Navigator(nn.Module):
         state_shape: per-env recurrent state (zeros: a new episode).
         held_dim: size of the outputs held between frames.
         nav_dim: size of ``NAV_GOAL``. num_goals: near goals predicted (0: none).
+        history_dim: size of ``HISTORY_LATENT`` (0: the navigator writes none).
         in_keys: observation keys read by ``frame`` and ``act``.
     """
 
@@ -91,6 +95,7 @@ class Navigator(nn.Module):
     held_dim: int = 1
     nav_dim: int = 4
     num_goals: int = 0
+    history_dim: int = 0
     in_keys: tuple = (keys.GOAL, keys.PROPRIO)
 
     def frame(self, obs: dict, state: torch.Tensor, features: torch.Tensor | None = None
@@ -106,7 +111,8 @@ class Navigator(nn.Module):
 
     def act(self, obs: dict, held: torch.Tensor) -> dict[str, torch.Tensor]:
         """Policy-rate outputs: ``latent`` (B, 32), ``nav_goal`` (B, nav_dim),
-        ``near_goals`` (B, num_goals, 2), ``goal_correction`` (B, 2)."""
+        ``near_goals`` (B, num_goals, 2), ``goal_correction`` (B, 2), and
+        ``history_latent`` (B, history_dim) when ``history_dim``."""
         raise NotImplementedError
 
 
@@ -116,11 +122,15 @@ def _unit(xy: torch.Tensor) -> torch.Tensor:
 
 class LegoHNavigator(Navigator):
     """TC-ViTs (legoh/modules/tcvit.py): latent z_uni, delta_g0 and g1..g3 from the frame
-    history, the goals and proprioception. Only (delta_g0, g1) go to locomotion."""
+    history, the goals and proprioception. Only (delta_g0, g1) go to locomotion.
+
+    ``history``: also a latent of the proprioception history every step (the oracle's
+    adaptation module's shape; ``algo.history_latent``), which locomotion reads too."""
 
     in_keys = (keys.DEPTH, keys.GOAL, keys.PROPRIO)
 
-    def __init__(self, dims: StudentDims, preset: str = "small", core: str = "gru") -> None:
+    def __init__(self, dims: StudentDims, preset: str = "small", core: str = "gru",
+                 history: bool = False) -> None:
         super().__init__()
         from legoh.modules.tcvit import TCViTs, tcvit_config
 
@@ -130,6 +140,11 @@ class LegoHNavigator(Navigator):
         self.state_shape = tuple(self.net.state_shape)
         self.num_goals = self.cfg.num_goals
         self.held_dim = LATENT_DIM + 2 + 2 * self.num_goals
+        if history:
+            self.history = HistoryConvEncoder(dims.proprio, dims.history, PRIV_LATENT_DIM,
+                                              HISTORY_CHANNELS)
+            self.history_dim = PRIV_LATENT_DIM
+            self.in_keys = (*self.in_keys, keys.PROPRIO_HISTORY)
 
     def encode(self, obs):
         return self.net.encode(obs[keys.DEPTH], obs[keys.GOAL][:, :2])
@@ -145,8 +160,11 @@ class LegoHNavigator(Navigator):
     def act(self, obs, held):
         latent, corr, goals = held.split([LATENT_DIM, 2, 2 * self.num_goals], dim=-1)
         goals = goals.unflatten(-1, (self.num_goals, 2))
-        return {"latent": latent, "goal_correction": corr, "near_goals": goals,
-                "nav_goal": torch.cat([corr, goals[..., 0, :]], dim=-1)}
+        out = {"latent": latent, "goal_correction": corr, "near_goals": goals,
+               "nav_goal": torch.cat([corr, goals[..., 0, :]], dim=-1)}
+        if self.history_dim:
+            out["history_latent"] = self.history(obs[keys.PROPRIO_HISTORY])
+        return out
 
 
 class DepthCNN(nn.Module):
@@ -257,13 +275,17 @@ STUDENTS = {"lego_h": LegoHNavigator, "ep_h": EPHNavigator, "rma_b": RMABNavigat
             "rma_h": RMAHNavigator}
 
 
-def make_navigator(name: str, dims: StudentDims, preset: str = "small", core: str = "gru"
-                   ) -> Navigator:
-    """The navigation half of student ``name`` (one of :data:`STUDENTS`)."""
+def make_navigator(name: str, dims: StudentDims, preset: str = "small", core: str = "gru",
+                   history: bool = False) -> Navigator:
+    """The navigation half of student ``name`` (one of :data:`STUDENTS`); ``history``: a
+    history latent for locomotion too (LEGO-H only: RMA's students have theirs)."""
     if name not in STUDENTS:
         raise ValueError(f"unknown student {name!r}; choose one of {sorted(STUDENTS)}")
     if name == "lego_h":
-        return LegoHNavigator(dims, preset, core)
+        return LegoHNavigator(dims, preset, core, history)
+    if history:
+        raise ValueError(f"algo.history_latent=true applies to student 'lego_h' only, got "
+                         f"algo.student={name!r}")
     return STUDENTS[name](dims)
 
 
@@ -289,6 +311,8 @@ class NavigationModule(TensorDictModuleBase):
         self.out_keys = [keys.STUDENT_LATENT, keys.NAV_GOAL, keys.NEAR_GOALS,
                          keys.GOAL_CORRECTION, ("next", *keys.NAV_STATE),
                          ("next", *keys.NAV_HELD)]
+        if navigator.history_dim:
+            self.out_keys.append(keys.HISTORY_LATENT)
 
     def state_spec(self, batch: tuple[int, ...] = ()) -> Composite:
         """The recurrent entries, for torchrl's ``TensorDictPrimer`` (zeros at reset)."""
@@ -336,27 +360,36 @@ class NavigationModule(TensorDictModuleBase):
         """The policy-rate outputs (``Navigator.act``) of ``batch`` rows under their keys."""
         out = self.navigator.act(obs, held)
         zeros = held.new_zeros
-        return {keys.STUDENT_LATENT: out["latent"], keys.NAV_GOAL: out["nav_goal"],
-                keys.NEAR_GOALS: out.get("near_goals", zeros(batch, 0, 2)),
-                keys.GOAL_CORRECTION: out.get("goal_correction", zeros(batch, 2))}
+        outputs = {keys.STUDENT_LATENT: out["latent"], keys.NAV_GOAL: out["nav_goal"],
+                   keys.NEAR_GOALS: out.get("near_goals", zeros(batch, 0, 2)),
+                   keys.GOAL_CORRECTION: out.get("goal_correction", zeros(batch, 2))}
+        if "history_latent" in out:
+            outputs[keys.HISTORY_LATENT] = out["history_latent"]
+        return outputs
 
 
 def make_locomotion_actor(dims: StudentDims, nav_dim: int, action_dim: int,
                           action_bound: float, hidden: tuple[int, ...] = (512, 256, 128),
                           init_std: float = 0.5, min_std: float = 1e-4,
-                          learn_std: bool = True) -> ProbabilisticActor:
-    """The locomotion module: proprioception, z_uni and the navigation goal in, a diagonal
-    Normal over joint actions out (the oracle actor's MLP shape and distribution); its
-    state-independent std starts at ``init_std`` and is a constant unless ``learn_std``.
+                          learn_std: bool = True, history_dim: int = 0) -> ProbabilisticActor:
+    """The locomotion module: proprioception, z_uni and the navigation goal in (and the
+    history latent, last, when ``history_dim``), a diagonal Normal over joint actions out
+    (the oracle actor's MLP shape and distribution); its state-independent std starts at
+    ``init_std`` and is a constant unless ``learn_std``.
 
-    Reads ``PROPRIO`` (B, P), ``STUDENT_LATENT`` (B, 32), ``NAV_GOAL`` (B, nav_dim);
-    writes ``LOC``/``SCALE`` (B, A), ``"action"`` (B, A) and ``"sample_log_prob"`` (B,).
+    Reads ``PROPRIO`` (B, P), ``STUDENT_LATENT`` (B, 32), ``NAV_GOAL`` (B, nav_dim)
+    [, ``HISTORY_LATENT`` (B, history_dim)]; writes ``LOC``/``SCALE`` (B, A), ``"action"``
+    (B, A) and ``"sample_log_prob"`` (B,).
     """
-    body = ConcatMLP([dims.proprio, LATENT_DIM, nav_dim], [1, 1, 1], hidden, action_dim, None)
+    in_keys = [keys.PROPRIO, keys.STUDENT_LATENT, keys.NAV_GOAL]
+    sizes = [dims.proprio, LATENT_DIM, nav_dim]
+    if history_dim:
+        in_keys.append(keys.HISTORY_LATENT)
+        sizes.append(history_dim)
+    body = ConcatMLP(sizes, [1] * len(sizes), hidden, action_dim, None)
     gaussian = GaussianPolicyHead(body, action_dim, action_bound, init_std, min_std)
     gaussian.std.requires_grad_(learn_std)
-    head = TensorDictModule(gaussian, [keys.PROPRIO, keys.STUDENT_LATENT, keys.NAV_GOAL],
-                            [LOC, SCALE])
+    head = TensorDictModule(gaussian, in_keys, [LOC, SCALE])
     return ProbabilisticActor(head, in_keys={"loc": LOC, "scale": SCALE}, out_keys=[keys.ACTION],
                               distribution_class=IndependentNormal,
                               distribution_kwargs={"tanh_loc": False}, return_log_prob=True,
@@ -385,11 +418,12 @@ class Student:
 
 def make_student(name: str, dims: StudentDims, action_dim: int, action_bound: float,
                  preset: str = "small", core: str = "gru", init_std: float = 0.5,
-                 learn_std: bool = True) -> Student:
-    """Student ``name`` (``lego_h``, ``ep_h``, ``rma_b``, ``rma_h``) for these input sizes."""
-    nav = make_navigator(name, dims, preset, core)
+                 learn_std: bool = True, history_latent: bool = False) -> Student:
+    """Student ``name`` (``lego_h``, ``ep_h``, ``rma_b``, ``rma_h``) for these input sizes;
+    ``history_latent``: LEGO-H's locomotion reads a proprio-history latent too."""
+    nav = make_navigator(name, dims, preset, core, history_latent)
     loco = make_locomotion_actor(dims, nav.nav_dim, action_dim, action_bound, init_std=init_std,
-                                 learn_std=learn_std)
+                                 learn_std=learn_std, history_dim=nav.history_dim)
     return Student(NavigationModule(nav), loco, dims, name)
 
 

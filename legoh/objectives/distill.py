@@ -34,7 +34,8 @@ def distillation_loss(student_out: TensorDictBase, student_loc: torch.Tensor,
         student_out: the navigation module's outputs, re-run with gradients (``unroll``).
         student_loc: the locomotion module's mean action on those outputs (N, T, A).
         batch: the collected batch with ``TEACHER_ACTION`` (N, T, A), ``TEACHER_LATENT``
-            (N, T, 32), ``EXPERT_GOALS`` (N, T, 3, 2) and ``GOAL`` (N, T, 4).
+            (N, T, 32), ``EXPERT_GOALS`` (N, T, 3, 2) and ``GOAL`` (N, T, 4); and
+            ``TEACHER_PRIV_LATENT`` (N, T, 20) when ``student_out`` has ``HISTORY_LATENT``.
         weights: :class:`legoh.config.algo.LossWeights` (or the same fields).
         hlm: a callable ``(teacher_action, student_action) -> TensorDict`` of ``loss_*``
             terms (HLM's plug-in loss), or None for no action prior.
@@ -47,6 +48,10 @@ def distillation_loss(student_out: TensorDictBase, student_loc: torch.Tensor,
         latent = student_out.get(keys.STUDENT_LATENT)
         out["loss_latent"] = weights.w7 * torch.mean(
             (latent - batch.get(keys.TEACHER_LATENT)) ** 2)
+    history = student_out.get(keys.HISTORY_LATENT, None)
+    if history is not None and weights.w_priv:
+        out["loss_priv_latent"] = weights.w_priv * torch.mean(
+            (history - batch.get(keys.TEACHER_PRIV_LATENT)) ** 2)
     expert = batch.get(keys.EXPERT_GOALS)
     if weights.w3:
         target = goal_correction_target(batch.get(keys.GOAL), expert)

@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
+import torch
 from omegaconf import DictConfig, OmegaConf
 from torchrl.data import Composite, Unbounded
 from torchrl.envs import Compose, EnvBase, InitTracker, TensorDictPrimer, TransformedEnv
@@ -110,14 +111,17 @@ def build_student(cfg: DictConfig, env: EnvBase | None = None) -> Student:
     # every student acts with the same fixed noise (docs/unified.md, "The same exploration")
     return make_student(algo.student, dims, env.action_spec.shape[-1], algo.tanh_bound,
                         preset=algo.net, core=algo.core, init_std=algo.init_noise_std,
-                        learn_std=False)
+                        learn_std=False, history_latent=bool(algo.history_latent))
 
 
 # what a depth student's frames depend on beyond their shape (the layout checks that): a
-# student that learned from one camera pose or depth range sees nonsense through another
+# student that learned from one camera pose or depth range sees nonsense through another.
+# And what it reads beyond them: algo.history_latent (absent from older checkpoints: off)
 SENSOR_KEYS = ("robot.camera.body", "robot.camera.pos", "robot.camera.pitch_deg",
                "robot.camera.fovy_deg", "env.depth.far", "env.depth.every",
-               "env.depth.history", "env.depth.stride", "algo.depth_far")
+               "env.depth.history", "env.depth.stride", "algo.depth_far",
+               "algo.history_latent")
+STORED_DEFAULTS = {"algo.history_latent": False}  # what a checkpoint without the key had
 
 
 def sensor_differences(cfg: DictConfig, stored: dict) -> list[tuple[str, object, object]]:
@@ -126,7 +130,7 @@ def sensor_differences(cfg: DictConfig, stored: dict) -> list[tuple[str, object,
     older runs, are skipped); lists compare as plain lists."""
     stored_cfg, absent, out = OmegaConf.create(stored), object(), []
     for key in SENSOR_KEYS:
-        have = OmegaConf.select(stored_cfg, key, default=absent)
+        have = OmegaConf.select(stored_cfg, key, default=STORED_DEFAULTS.get(key, absent))
         if have is absent:
             continue
         want = OmegaConf.select(cfg, key)
@@ -143,9 +147,10 @@ def check_sensors(cfg: DictConfig, path: str | Path, stored: dict) -> None:
     differences = sensor_differences(cfg, stored)
     if differences:
         key, have, want = differences[0]
+        why = ("its locomotion reads the inputs it learned with" if key == "algo.history_latent"
+               else "a student sees its depth only through the camera it learned with")
         raise CheckpointError(f"{path} was trained with {key}={have}, but this run has "
-                              f"{key}={want}: a student sees its depth only through the "
-                              f"camera it learned with (pass {key}={have})")
+                              f"{key}={want}: {why} (pass {key}={have})")
 
 
 def sensors_from_checkpoint(cfg: DictConfig, path: str | Path) -> DictConfig:
@@ -184,6 +189,49 @@ def load_student(cfg: DictConfig, path: str | Path, student: Student) -> dict:
     state = read_student_checkpoint(cfg, path, student)
     for name, module in student.modules().items():
         module.load_state_dict(state["models"][name])
+    return state
+
+
+def stored_history_latent(path: str | Path) -> bool:
+    """Whether a stage-2 checkpoint's student reads a history latent (``algo.history_latent``;
+    older checkpoints: no)."""
+    stored = OmegaConf.create(load_checkpoint(path).get("config", {}))
+    return bool(OmegaConf.select(stored, "algo.history_latent", default=False))
+
+
+def load_student_adding_history(cfg: DictConfig, path: str | Path, student: Student,
+                                teacher_path: str | Path) -> dict:
+    """Warm-start ``student`` (``algo.history_latent=true``) from checkpoint ``path`` of one
+    without a history latent: every weight it has is loaded; the locomotion MLP's first
+    layer gains zero columns for the latent (so the student first acts exactly as the
+    loaded one), and the history encoder starts from the teacher's adaptation module,
+    which estimates the same latent (the privileged encoder's) from the same history.
+    Returns the checkpoint."""
+    plain = cfg.copy()
+    OmegaConf.update(plain, "algo.history_latent", False, merge=False)
+    state = read_student_checkpoint(plain, path, student)
+    nav = student.navigation
+    missing, unexpected = nav.load_state_dict(state["models"]["navigation"], strict=False)
+    if unexpected or not all(k.startswith("navigator.history.") for k in missing):
+        raise CheckpointError(f"{path}: its navigation does not match this student's but for "
+                              f"the history encoder (missing {missing}, unexpected {unexpected})")
+    adaptation = load_checkpoint(teacher_path)["models"].get("adaptation")
+    if adaptation is None:
+        raise CheckpointError(f"{teacher_path} holds no adaptation module to start "
+                              f"algo.history_latent's encoder from")
+    nav.navigator.history.load_state_dict(
+        {k.removeprefix("module."): v for k, v in adaptation.items()})
+    loco = student.locomotion.state_dict()
+    extra = student.navigation.navigator.history_dim
+    for key, value in state["models"]["locomotion"].items():
+        if loco[key].shape != value.shape:  # the first layer: the latent's columns come last
+            if tuple(loco[key].shape) != (value.shape[0], value.shape[1] + extra):
+                raise CheckpointError(f"{path}: locomotion weight {key} has shape "
+                                      f"{tuple(value.shape)}, this student's "
+                                      f"{tuple(loco[key].shape)}")
+            value = torch.cat([value, value.new_zeros(value.shape[0], extra)], dim=1)
+        loco[key] = value
+    student.locomotion.load_state_dict(loco)
     return state
 
 

@@ -24,6 +24,7 @@ from legoh import keys
 from legoh.config.env import DepthConfig
 from legoh.envs.hiking_env import make_env
 from legoh.modules.actor_critic import LOC
+from legoh.modules.encoders import PRIV_LATENT
 from legoh.modules.students import Student, unroll
 from legoh.objectives.distill import distillation_loss
 from legoh.objectives.ppo import make_ppo, ppo_update, use_bfloat16
@@ -32,9 +33,11 @@ from legoh.policies.pretrained import init_checkpoint
 from legoh.policies.student import (
     build_student,
     load_student,
+    load_student_adding_history,
     make_student_env,
     read_student_checkpoint,
     state_shapes,
+    stored_history_latent,
     student_env_overrides,
 )
 from legoh.train.algorithm import Algorithm, start_at_checkpoint_lr
@@ -144,7 +147,12 @@ class StudentDistillation(Algorithm):
         critic stays this teacher's, the optimisers and the action prior start afresh: the
         prior models the teacher's actions, and the teacher may be another one. PPO starts
         at the learning rate the checkpoint's schedule reached, as an oracle's warm start."""
-        state = load_student(self.cfg, path, self.student)
+        if self.algo.history_latent and not stored_history_latent(path):
+            state = load_student_adding_history(self.cfg, path, self.student, self.teacher_path)
+            print(f"[legoh] {path} has no history latent: its locomotion reads one now "
+                  f"(zero weights to start), encoded by the teacher's adaptation module")
+        else:
+            state = load_student(self.cfg, path, self.student)
         start_at_checkpoint_lr(self.optimizers["ppo"], state)
         print(f"[legoh] student weights from {path} (init={self.cfg.init}, iteration "
               f"{state.get('iteration', '?')}; its teacher {state['extra'].get('oracle')}); "
@@ -177,12 +185,13 @@ class StudentDistillation(Algorithm):
 
 def label_with_oracle(oracle, batch, clip: float | None = None) -> None:
     """DAgger labels: the oracle's mean action (clamped to +-``clip`` unless None:
-    ``algo.label_clip``) and scandot latent on the student's states."""
+    ``algo.label_clip``), scandot latent and privileged latent on the student's states."""
     with torch.no_grad():
         out = oracle(batch.select(*oracle.in_keys).clone(recurse=False))
     action = out.get(LOC)
     batch.set(keys.TEACHER_ACTION, action if clip is None else action.clamp(-clip, clip))
     batch.set(keys.TEACHER_LATENT, out.get(keys.TEACHER_LATENT))
+    batch.set(keys.TEACHER_PRIV_LATENT, out.get(PRIV_LATENT))
 
 
 def distill(student: Student, batch, cfg: DictConfig, optim, prior_loss,
