@@ -474,7 +474,8 @@ def plot(out: Path) -> None:
     per_it = e["frames"][-1] / max(e["iteration"][-1], 1)
     plot_training(axes[:2], out, per_it, CATEGORIES)
     t = read_train(out)
-    for key, style in (("distill/loss_action", "k"), ("distill/loss_latent", "k--")):
+    for key, style in (("distill/loss_action", "k"), ("distill/loss_latent", "k--"),
+                       ("distill/loss_priv_latent", "k:")):  # algo.history_latent only
         if key in t:
             axes[2].plot(t["iteration"] * per_it / 1e6, smooth(t[key]), style, label=key)
     axes[2].set_yscale("log")
