@@ -55,12 +55,11 @@ def table(out: Path) -> dict:
             rows = read_rows(folder(out, algo, randomization) / "benchmark.csv")
             got[algo, randomization] = {r: (*rows[r]["SR"], rows[r]["FR"][0])
                                         for r in ROWS}
-    names = list(got[ALGOS[0], False])
     head = ["row", "teacher SR, no rand.", "student SR, no rand.", "ratio",
             "teacher SR, rand.", "student SR, rand.", "ratio", "falls (%) t / s, no rand.",
             "falls (%) t / s, rand."]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    for name in names:
+    for name in ROWS:
         cells = [name]
         for randomization in (False, True):
             t, s = got["oracle", randomization][name], got["unified", randomization][name]
@@ -80,16 +79,15 @@ def plot(got: dict, out: Path, robot: str) -> Path:
     import matplotlib.pyplot as plt
     import numpy as np
 
-    names = list(got[ALGOS[0], False])
-    x = np.arange(len(names))
+    x = np.arange(len(ROWS))
     fig, ax = plt.subplots(figsize=(10, 3.5))
     for i, (algo, randomization) in enumerate(got):
-        sr = [got[algo, randomization][n][0] for n in names]
-        err = [got[algo, randomization][n][1] for n in names]
+        sr = [got[algo, randomization][n][0] for n in ROWS]
+        err = [got[algo, randomization][n][1] for n in ROWS]
         label = f"{'teacher' if algo == 'oracle' else 'student'}, randomisation " \
                 f"{'on' if randomization else 'off'}"
         ax.bar(x + (i - 1.5) * 0.2, sr, 0.2, yerr=err, label=label)
-    ax.set_xticks(x, names, fontsize=8)
+    ax.set_xticks(x, ROWS, fontsize=8)
     ax.set_ylabel("SR (%)")
     ax.set_title(f"{robot}: shipped student and teacher, randomisation off and on", fontsize=9)
     ax.set_ylim(0, 118)

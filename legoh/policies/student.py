@@ -196,7 +196,8 @@ def stored_history_latent(path: str | Path) -> bool:
     """Whether a stage-2 checkpoint's student reads a history latent (``algo.history_latent``;
     older checkpoints: no)."""
     stored = OmegaConf.create(load_checkpoint(path).get("config", {}))
-    return bool(OmegaConf.select(stored, "algo.history_latent", default=False))
+    key = "algo.history_latent"
+    return bool(OmegaConf.select(stored, key, default=STORED_DEFAULTS[key]))
 
 
 def load_student_adding_history(cfg: DictConfig, path: str | Path, student: Student,
