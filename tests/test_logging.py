@@ -33,6 +33,18 @@ class TestScalarCSV:
         assert rows(tmp_path / "s.csv") == [["iteration", "loss", "kl"], ["0", "1.0", ""],
                                             ["1", "2.0", "0.1"]]
 
+    def test_cells_at_float32_precision_and_counts_exact(self, tmp_path):
+        # Python's 17-digit text of float32 losses made a study job's train.csv 26 MB
+        loss = float(np.float32(0.30052083))  # as a float32 tensor's .item() gives it
+        with ScalarCSV(tmp_path / "s.csv") as log:
+            log.write(0, {"loss": loss, "fps": 467.38330150712534, "frames": 26_900_012.0,
+                          "kl": float("nan"), "huge": 1e300})
+        (_, *values), = rows(tmp_path / "s.csv")[1:]
+        assert dict(zip(rows(tmp_path / "s.csv")[0][1:], values, strict=True)) == {
+            "fps": "467.3833", "frames": "26900012.0", "huge": "1e+300", "kl": "nan",
+            "loss": "0.30052084"}
+        assert np.float32(float(values[-1])) == np.float32(loss)  # reads back exactly
+
     def test_resume_appends_and_fresh_refuses(self, tmp_path):
         with ScalarCSV(tmp_path / "s.csv") as log:
             log.write(0, {"loss": 1.0})
