@@ -157,6 +157,63 @@ def section(spec: PaperTable, frames: int | None, eval_runs: int) -> tuple[list[
     return lines, total
 
 
+def job_state(name: str, jobs: Path | None = None) -> tuple[str, int, float, dict]:
+    """(state, frames trained, training minutes, ``{row: SR}``) of job ``name`` from what
+    is committed under ``jobs`` (default :data:`JOBS`): ``recorded`` (its ``record.json``
+    and benchmark), ``parked`` (``unfinished/``: its log's last iteration and minutes) or
+    ``not started``."""
+    from legoh.eval.study import read_rows
+
+    folder = (jobs or JOBS) / name
+    if (folder / "record.json").is_file() and (folder / "benchmark.csv").is_file():
+        info = json.loads((folder / "record.json").read_text(encoding="utf-8"))
+        rows = read_rows(folder / "benchmark.csv")
+        return ("recorded", int(info["frames"]), float(info["minutes"]),
+                {row: value["SR"][0] for row, value in rows.items()})
+    parked = folder / UNFINISHED
+    if (parked / "train.csv").is_file() and (parked / ".hydra" / "config.yaml").is_file():
+        from omegaconf import OmegaConf
+
+        algo = OmegaConf.load(parked / ".hydra" / "config.yaml").algo
+        batch = int(algo.num_envs) * int(algo.steps_per_env)
+        with open(parked / "train.csv", newline="", encoding="utf-8") as f:
+            rows = [r for r in csv.DictReader(f) if r["frames_per_s"]]
+        minutes = sum(batch / float(r["frames_per_s"]) for r in rows) / 60
+        last = int(rows[-1]["iteration"]) if rows else 0
+        return "parked", last * batch, minutes, {}
+    return "not started", 0, 0.0, {}
+
+
+PROGRESS_ROWS = ("overall", "randommix", "ditch", "hurdle", "gap", "forest")
+
+
+def progress_section(seeds: list[int], frames: int | None, jobs: Path | None = None
+                     ) -> list[str]:
+    """Where the sweep stands: every job of the six tables at ``seeds`` (and at the seeds
+    of the jobs already under ``jobs``), its state (:func:`job_state`), and a recorded
+    job's SR overall and per category, so a reader sees the study before its tables."""
+    folder = jobs or JOBS
+    on_disk = {int(p.name.rsplit("-seed", 1)[1]) for p in folder.glob("*-seed*")
+               if p.name.rsplit("-seed", 1)[1].isdigit()}
+    planned = planned_jobs(PAPER_TABLES, sorted(set(seeds) | on_disk), main=True)
+    states = {name: job_state(name, folder) for name in planned}
+    done = sum(state == "recorded" for state, *_ in states.values())
+    budget = f"{frames / 1e6:g}M frames a job" if frames else "the budget its record states"
+    lines = ["## Where the sweep stands", "",
+             f"{done} of {len(planned)} jobs recorded at {budget}; a table is written once "
+             "all its jobs are recorded. Parked jobs resume from `paper_jobs/<job>/"
+             "unfinished/`. Training minutes on this machine's 2 cores (two jobs at once "
+             "share them). SR (%) on protocol v2, one run of the job's robots a level.", "",
+             "| job | state | frames | training min | " + " | ".join(
+                 f"SR {row}" for row in PROGRESS_ROWS) + " |",
+             "|" + "---|" * (4 + len(PROGRESS_ROWS))]
+    for name, (state, trained, minutes, sr) in states.items():
+        cells = [f"{sr[row]:.1f}" if row in sr else "–" for row in PROGRESS_ROWS]
+        lines.append(f"| {name} | {state} | {trained / 1e6:.2f}M | {minutes:.0f} | "
+                     + " | ".join(cells) + " |")
+    return lines + [""]
+
+
 def summary_line(counts: dict[str, int]) -> str:
     told = counts.get("yes", 0) + counts.get("no", 0)
     return (f"Where both separate the methods the orderings agree in {counts.get('yes', 0)} "
@@ -556,10 +613,10 @@ def main() -> None:
     if args.reopen:
         reopen(args.reopen.split(","))
         return
+    seeds = [int(x) for x in args.seeds.split(",")]
     if args.run:
         if not args.frames:
             parser.error("--run needs --frames (the same stage-2 frames for every job)")
-        seeds = [int(x) for x in args.seeds.split(",")]
         main_too = "main" in args.tables
         only = None if args.jobs is None else args.jobs.split(",")
         run_jobs(planned_jobs(specs, seeds, main_too, only), args.frames, args.eval_runs,
@@ -580,6 +637,7 @@ def main() -> None:
              "numbers come from full training (Isaac Gym, thousands of robots, the paper "
              "preset); ours from CPU-scale runs (the small TC-ViTs preset, the shipped "
              "oracle teaching), so compare orderings, not values.", ""]
+    lines += progress_section(seeds, args.frames)
     lines += main_section(args.frames, args.eval_runs)
     for spec in PAPER_TABLES:  # every table: --tables picks the studies run, not the page
         lines += section(spec, args.frames, args.eval_runs)[0]

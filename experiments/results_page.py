@@ -264,13 +264,19 @@ def study_section() -> list[str]:
              f"From [`{rel(path)}`]({rel(path)}) (`python experiments/paper_tables.py`): our "
              "jobs beside the appendix's tables, per metric; compare the orderings, not the "
              "values. Each table and how many orderings agree:", ""]
-    title = None
+    title, older, progress = None, "", []
     for line in path.read_text(encoding="utf-8").splitlines():
         if line.startswith("## "):
-            title = line[3:]
+            title, older = line[3:], ""
+        elif title == "Where the sweep stands":
+            progress.append(line)  # the sweep's state, as the tables page has it
+        elif line.startswith("**Not this budget**") and title is not None:
+            older = " (an older budget's table: " + line.split(": ", 1)[1].split(";")[0] + ")"
         elif line.startswith("Where both separate") and title is not None:
-            lines += [f"- **{title}**: {line[0].lower()}{line[1:]}"]
+            lines += [f"- **{title}**{older}: {line[0].lower()}{line[1:]}"]
             title = None
+    if progress:
+        lines += ["", "### Where the sweep stands", *progress]
     return lines + [""]
 
 

@@ -364,6 +364,8 @@ def test_a_paper_job_killed_at_a_session_end_is_parked_and_resumes_on_a_fresh_cl
     assert {p.name for p in parked.rglob("*") if p.is_file()} == {
         "unified.pt", "train.csv", "config.yaml"}
     assert not (records / "h1-unified-seed0" / "benchmark.csv").exists()
+    # the page's progress table reads the parked log: iteration 1 of 100-frame batches
+    assert paper_tables.job_state("h1-unified-seed0") == ("parked", 100, 2 / 60, {})
     shutil.rmtree(runs)  # a fresh clone: multirun/ is not committed
     assert paper_tables.run_job(*job, **each, deadline=time.time() - 1) is None  # too late
     assert not runs.exists() and len(calls) == 1
@@ -373,6 +375,12 @@ def test_a_paper_job_killed_at_a_session_end_is_parked_and_resumes_on_a_fresh_cl
     assert "eval.robots=400" in calls[-1] and "algo.total_frames=1000" in calls[-1]
     assert not parked.exists() and (record / "record.json").is_file()
     assert (record / "train.csv").read_text().count("\n") == 3  # the parked rows kept
+    state, frames, _, sr = paper_tables.job_state("h1-unified-seed0")
+    assert (state, frames, sr["overall"]) == ("recorded", 1000, 41.0)
+    progress = "\n".join(paper_tables.progress_section([0], 1000))
+    assert "1 of 9 jobs recorded" in progress  # the six tables' and the main comparison's
+    assert "| h1-unified-seed0 | recorded | 0.00M | 0 | 41.0 |" in progress
+    assert "| h1-rma_h-seed0 | not started |" in progress
     with pytest.raises(SystemExit, match="eval.robots=400; this sweep asks .*eval.robots=80:"):
         paper_tables.run_job(*job, **{**each, "eval_robots": 80})
     with pytest.raises(SystemExit, match="--minutes 0: valid is > 0"):
