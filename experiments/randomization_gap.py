@@ -3,12 +3,17 @@
 levels and seeds with ``eval.randomization`` off and on.
 
     python experiments/randomization_gap.py --robot g1 [--levels 0 1] [--robots 160] [--runs 2]
+    python experiments/randomization_gap.py --robot g1 --blind  # + the teacher blind to physics
     python experiments/randomization_gap.py --robot g1 --plot   # table and figure only
 
 Each of the four evaluations is ``python run.py mode=eval checkpoint=pretrained`` (the
 shipping protocol's seed 2000 and 5 variants a level) into
 ``experiments/results/randomization_gap/<robot>/<algo>-rand<bool>/``; ``table.md`` and
-``gap.png`` are written beside them from their ``benchmark.csv``.
+``gap.png`` are written beside them from their ``benchmark.csv``. ``--blind`` adds one
+evaluation (the four are kept): the teacher under the randomisation with its privileged
+input showing every robot the nominal physics draw
+(``env.randomization.observe_physics=false``) into ``oracle-blind/``: what knowing the
+draws is worth to it, the information its student cannot read.
 """
 
 from __future__ import annotations
@@ -34,30 +39,42 @@ def folder(out: Path, algo: str, randomization: bool) -> Path:
     return out / f"{algo}-rand{str(randomization).lower()}"
 
 
+BLIND = "oracle-blind"  # the teacher under Table 5, blind to its robot's physics draw
+
+
 def run(args, out: Path) -> None:
     levels = "[" + ",".join(str(lv) for lv in args.levels) + "]"
-    for algo in ALGOS:
-        for randomization in (False, True):
-            subprocess.run(
-                [sys.executable, str(ROOT / "run.py"), f"robot={args.robot}", f"algo={algo}",
-                 "mode=eval", "checkpoint=pretrained", "trail=hike", f"eval.levels={levels}",
-                 f"eval.robots={args.robots}", f"eval.runs={args.runs}", "eval.variants=5",
-                 "eval.seed=2000", f"eval.randomization={str(randomization).lower()}",
-                 "video=false", f"hydra.run.dir={folder(out, algo, randomization)}"],
-                check=True)
+    arms = [(BLIND, "oracle", True, ["env.randomization.observe_physics=false"])] \
+        if args.blind else [(folder(out, algo, randomization).name, algo, randomization, [])
+                            for algo in ALGOS for randomization in (False, True)]
+    for name, algo, randomization, extra in arms:
+        subprocess.run(
+            [sys.executable, str(ROOT / "run.py"), f"robot={args.robot}", f"algo={algo}",
+             "mode=eval", "checkpoint=pretrained", "trail=hike", f"eval.levels={levels}",
+             f"eval.robots={args.robots}", f"eval.runs={args.runs}", "eval.variants=5",
+             "eval.seed=2000", f"eval.randomization={str(randomization).lower()}", *extra,
+             "video=false", f"hydra.run.dir={out / name}"],
+            check=True)
+
+
+def sr_falls(path: Path) -> dict:
+    """{row: (SR mean, SR std, FR mean)} of one evaluation's ``benchmark.csv``."""
+    rows = read_rows(path)
+    return {r: (*rows[r]["SR"], rows[r]["FR"][0]) for r in ROWS}
 
 
 def table(out: Path) -> dict:
-    """{(algo, randomization): {row: (SR mean, SR std, FR mean)}} and table.md."""
-    got = {}
-    for algo in ALGOS:
-        for randomization in (False, True):
-            rows = read_rows(folder(out, algo, randomization) / "benchmark.csv")
-            got[algo, randomization] = {r: (*rows[r]["SR"], rows[r]["FR"][0])
-                                        for r in ROWS}
+    """{(algo, randomization): {row: (SR mean, SR std, FR mean)}} (and ``BLIND`` when
+    ``--blind`` ran) and table.md."""
+    got = {(algo, randomization): sr_falls(folder(out, algo, randomization) / "benchmark.csv")
+           for algo in ALGOS for randomization in (False, True)}
+    if (out / BLIND / "benchmark.csv").is_file():
+        got[BLIND] = sr_falls(out / BLIND / "benchmark.csv")
     head = ["row", "teacher SR, no rand.", "student SR, no rand.", "ratio",
             "teacher SR, rand.", "student SR, rand.", "ratio", "falls (%) t / s, no rand.",
             "falls (%) t / s, rand."]
+    if BLIND in got:
+        head += ["teacher blind to physics: SR, rand.", "its falls (%)"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for name in ROWS:
         cells = [name]
@@ -67,6 +84,9 @@ def table(out: Path) -> dict:
                       f"{s[0] / t[0]:.2f}" if t[0] else "–"]
         cells += [f"{got['oracle', r][name][2]:.1f} / {got['unified', r][name][2]:.1f}"
                   for r in (False, True)]
+        if BLIND in got:
+            b = got[BLIND][name]
+            cells += [f"{b[0]:.1f} ± {b[1]:.1f}", f"{b[2]:.1f}"]
         lines.append("| " + " | ".join(cells) + " |")
     (out / "table.md").write_text("\n".join(lines) + "\n", encoding="utf-8")
     return got
@@ -81,12 +101,14 @@ def plot(got: dict, out: Path, robot: str) -> Path:
 
     x = np.arange(len(ROWS))
     fig, ax = plt.subplots(figsize=(10, 3.5))
-    for i, (algo, randomization) in enumerate(got):
-        sr = [got[algo, randomization][n][0] for n in ROWS]
-        err = [got[algo, randomization][n][1] for n in ROWS]
-        label = f"{'teacher' if algo == 'oracle' else 'student'}, randomisation " \
-                f"{'on' if randomization else 'off'}"
-        ax.bar(x + (i - 1.5) * 0.2, sr, 0.2, yerr=err, label=label)
+    width = 0.8 / len(got)
+    for i, arm in enumerate(got):
+        sr = [got[arm][n][0] for n in ROWS]
+        err = [got[arm][n][1] for n in ROWS]
+        label = "teacher blind to physics, randomisation on" if arm == BLIND else \
+            f"{'teacher' if arm[0] == 'oracle' else 'student'}, randomisation " \
+            f"{'on' if arm[1] else 'off'}"
+        ax.bar(x + (i - (len(got) - 1) / 2) * width, sr, width, yerr=err, label=label)
     ax.set_xticks(x, ROWS, fontsize=8)
     ax.set_ylabel("SR (%)")
     ax.set_title(f"{robot}: shipped student and teacher, randomisation off and on", fontsize=9)
@@ -107,6 +129,8 @@ def main() -> None:
     parser.add_argument("--robots", type=int, default=160, help="robots per level")
     parser.add_argument("--runs", type=int, default=2)
     parser.add_argument("--plot", action="store_true", help="table and figure only")
+    parser.add_argument("--blind", action="store_true",
+                        help="only the teacher blind to the physics draws (randomisation on)")
     args = parser.parse_args()
     out = ROOT / "experiments" / "results" / "randomization_gap" / args.robot
     if not args.plot:

@@ -8,7 +8,7 @@ reaches into another's internals. Shapes below are per environment (batch dims f
 PROPRIO = ("obs", "proprio")  # (P,) base ang. vel., gravity, joints, last action, terminus
 PROPRIO_HISTORY = ("obs", "proprio_history")  # (10, P) oldest first
 SCANDOTS = ("obs", "scandots")  # (132,) heights on a 12 x 11 grid in the yaw frame
-PRIVILEGED = ("obs", "privileged")  # (K,) friction, mass/CoM offsets, strength, lin. vel., category
+PRIVILEGED = ("obs", "privileged")  # (9,) friction, mass/CoM offsets, strength, lin. vel.
 GOAL = ("obs", "goal")  # (4,) terminus xy and middle waypoint xy, robot yaw frame, m
 COMMAND = ("obs", "command")  # (2,) forward speed m/s and yaw rate rad/s the oracle tracks
 DEPTH = ("obs", "depth")  # (T, H, W) depth frames, oldest first, normalised to [-0.5, 0.5]

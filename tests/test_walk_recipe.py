@@ -76,6 +76,20 @@ def test_nominal_model_before_the_schedule_starts() -> None:
     env.close()
 
 
+def test_a_robot_blind_to_physics_reads_the_nominal_draw_while_its_draw_acts() -> None:
+    # randomization_gap.py --blind: the oracle's privileged input without the draws
+    cfg = cfg_of("env.randomization.schedule=steps", "env.randomization.start_after_steps=0",
+                 "env.randomization.observe_physics=false")
+    env = make_env(cfg, num_envs=8)
+    td = env.reset()
+    assert (env.sim.model_of_env > 0).all()  # each robot steps a drawn model
+    frictions = {float(m.geom_friction[m.geom_priority > 0, 0][0]) for m in env.sim.models}
+    assert len(frictions) == len(env.sim.models)  # the draws differ...
+    physics = td[keys.PRIVILEGED][:, :6]  # ...but every robot reads the nominal one
+    torch.testing.assert_close(physics, torch.tensor([[1.0, 0, 0, 0, 0, 1]]).expand(8, 6))
+    env.close()
+
+
 def test_delta_torques_sees_the_previous_step() -> None:
     # Fault 6: last_torques was a view into sensordata, overwritten by the next step: the
     # term read 0 from the second step of every episode.

@@ -213,6 +213,9 @@ class RandomizationConfig:
     push_interval_s: float = 8.0  # s
     push_max_vel: float = 0.5  # m/s, xy
     max_action_delay: int = 1  # policy steps of delay
+    # false: the privileged input shows every robot the nominal draw while the draws still
+    # act, to measure how much an oracle leans on knowing them (randomization_gap.py --blind)
+    observe_physics: bool = True
     schedule: Schedule = Schedule.gate
     # share of recently ended episodes not falls that lets the ramp advance. The curriculum
     # keeps robots where they start to fail: at 0.8 the gate never opened in the first hiking

@@ -38,6 +38,9 @@ def set_constants(env, robot: RobotConfig) -> None:
     env.scan_rotor = observations.scan_rotor(observations.scan_points(dev, dt)
                                              / env.scan_grid.res)
     env.goal_offsets = torch.arange(observations.NUM_EXPERT_GOALS, device=dev)
-    env.physics_features = t(env.physics.as_features(), torch.float32)
+    features = env.physics.as_features()
+    if not env.cfg.randomization.observe_physics:  # every robot reads the nominal draw
+        features = np.repeat(features[:1], len(features), axis=0)
+    env.physics_features = t(features, torch.float32)
     env.push_every = max(1, int(round(env.cfg.randomization.push_interval_s / env.dt)))
     env.spawn_support = SpawnSupport(env)  # where a robot may start along a trail
