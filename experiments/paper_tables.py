@@ -172,15 +172,11 @@ def job_state(name: str, jobs: Path | None = None) -> tuple[str, int, float, dic
                 {row: value["SR"][0] for row, value in rows.items()})
     parked = folder / UNFINISHED
     if (parked / "train.csv").is_file() and (parked / ".hydra" / "config.yaml").is_file():
-        from omegaconf import OmegaConf
-
-        algo = OmegaConf.load(parked / ".hydra" / "config.yaml").algo
-        batch = int(algo.num_envs) * int(algo.steps_per_env)
+        batch = batch_frames(parked / ".hydra" / "config.yaml")
         with open(parked / "train.csv", newline="", encoding="utf-8") as f:
-            rows = [r for r in csv.DictReader(f) if r["frames_per_s"]]
-        minutes = sum(batch / float(r["frames_per_s"]) for r in rows) / 60
+            rows = list(csv.DictReader(f))
         last = int(rows[-1]["iteration"]) if rows else 0
-        return "parked", last * batch, minutes, {}
+        return "parked", last * batch, training_minutes(rows, batch), {}
     return "not started", 0, 0.0, {}
 
 
@@ -352,16 +348,28 @@ def run_job(name: str, robot: str, algo: str, seed: int, frames: int, eval_runs:
     return record
 
 
+def batch_frames(config: Path) -> int:
+    """Frames an iteration collects (``num_envs`` x ``steps_per_env``) in the run whose
+    Hydra ``config.yaml`` this is."""
+    from omegaconf import OmegaConf
+
+    algo = OmegaConf.load(config).algo
+    return int(algo.num_envs) * int(algo.steps_per_env)
+
+
+def training_minutes(rows: list[dict], batch: int) -> float:
+    """Training minutes of a run's ``train.csv`` rows: each iteration's batch over its
+    frames/s (evaluation excluded)."""
+    return sum(batch / float(r["frames_per_s"]) for r in rows if r["frames_per_s"]) / 60
+
+
 def trained_all(out: Path, frames: int) -> bool:
     """Whether the job in ``out`` has trained its ``frames`` (it is evaluating now): the
     last iteration of its ``train.csv`` against its config's batch, as run.py counts them."""
-    from omegaconf import OmegaConf
-
     log, config = out / "train.csv", out / ".hydra" / "config.yaml"
     if not (log.is_file() and config.is_file()):
         return False
-    algo = OmegaConf.load(config).algo
-    iterations = max(1, frames // (int(algo.num_envs) * int(algo.steps_per_env)))
+    iterations = max(1, frames // batch_frames(config))
     with open(log, "rb") as f:
         f.seek(max(0, f.seek(0, 2) - 65536))  # the last rows are enough
         rows = [r for r in f.read().decode("utf-8", "replace").splitlines() if r.strip()]
@@ -531,8 +539,7 @@ def write_record(record: Path, checkpoint: Path, recipe: str) -> Path:
     cfg = OmegaConf.load(record / ".hydra" / "config.yaml")
     with open(record / "train.csv", newline="") as f:
         rows = list(csv.DictReader(f))
-    batch = int(cfg.algo.num_envs) * int(cfg.algo.steps_per_env)
-    minutes = sum(batch / float(r["frames_per_s"]) for r in rows) / 60
+    minutes = training_minutes(rows, batch_frames(record / ".hydra" / "config.yaml"))
     teacher = Path(load_checkpoint(checkpoint)["extra"]["oracle"])
     info = {"job": record.name, "robot": str(cfg.robot.name), "algo": str(cfg.algo.name),
             "seed": int(cfg.seed), "frames": int(cfg.algo.total_frames),
