@@ -146,19 +146,27 @@ def students_section() -> list[str]:
     return lines
 
 
-def milestone_text(stones: dict) -> str:
+def milestone_text(stones: dict, first_frames: int) -> str:
+    """Each milestone's frames and minutes; one met at a run's first evaluation (at
+    ``first_frames``) was met by the weights it started from (a warm start), not learned in
+    0 frames."""
     parts = []
     for name, hit in stones.items():
-        parts.append(f"({name}) " + ("not reached" if hit is None else
-                                     f"{hit['frames'] / 1e6:.1f}M frames / "
-                                     f"{hit['minutes']:.0f} min"))
+        if hit is None:
+            text = "not reached"
+        elif hit["frames"] <= first_frames:
+            text = "met at the first evaluation"
+        else:
+            text = f"{hit['frames'] / 1e6:.1f}M frames / {hit['minutes']:.0f} min"
+        parts.append(f"({name}) {text}")
     return "; ".join(parts)
 
 
 def campaigns_section() -> list[str]:
     lines = ["## Learning campaigns", "",
              "Frames and training minutes (2-core CPU) to each milestone, from each run's "
-             "`milestones.json`; criteria in its `summary.md`.", "",
+             "`milestones.json`; criteria in its `summary.md`. A warm-started run meets some "
+             "milestones at its first evaluation, with the weights it started from.", "",
              "| Run | Milestones | Curve |", "|---|---|---|"]
     runs = sorted((RESULTS / "learn_walk").glob("*/milestones.json")) + sorted(
         (RESULTS / "learn_hike").glob("*/milestones.json")) + sorted(
@@ -168,7 +176,9 @@ def campaigns_section() -> list[str]:
         curve = path.parent / "curve.png"
         name = f"{path.parent.parent.name}/{path.parent.name}"
         link = f"[curve]({rel(curve)})" if curve.exists() else "-"
-        lines.append(f"| `{name}` | {milestone_text(meta['milestones'])} | {link} |")
+        with open(path.parent / "evals.csv") as f:
+            first = int(float(next(csv.DictReader(f))["frames"]))
+        lines.append(f"| `{name}` | {milestone_text(meta['milestones'], first)} | {link} |")
     lines.append("")
     for path in runs:
         if path.parent.parent.name != "learn_walk" and (path.parent / "curve.png").exists():

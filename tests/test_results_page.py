@@ -85,3 +85,13 @@ def test_an_average_of_a_run_without_benchmarked_snapshots_stands_alone(tmp_path
     monkeypatch.setattr(results_page, "RESULTS", tmp_path)
     row = next(line for line in results_page.averages_section() if "v2lag" in line)
     assert row == "| `g1-unified-s0-v2lag` | 8 | 6-18 | " + " | ".join(["52"] * len(cols)) + " |"
+
+
+def test_a_milestone_met_at_the_first_evaluation_reads_as_the_start_not_as_zero_frames():
+    import results_page
+
+    stones = {"s1": {"frames": 768, "minutes": 0.5}, "s2": {"frames": 691200, "minutes": 24.0},
+              "s3": None}
+    text = results_page.milestone_text(stones, first_frames=768)
+    assert text == ("(s1) met at the first evaluation; (s2) 0.7M frames / 24 min; "
+                    "(s3) not reached")
