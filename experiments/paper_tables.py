@@ -128,10 +128,24 @@ def study_frames(folder: Path) -> set[int]:
     return {int(job["frames"]) for jobs in groups.values() for job in jobs if "frames" in job}
 
 
-def section(spec: PaperTable, frames: int | None, eval_runs: int) -> tuple[list[str], dict]:
+def study_command(frames: int | None, eval_runs: int, seeds: list[int], recipe: str = "v2",
+                  eval_robots: int | None = None, tables: list[str] | None = None) -> str:
+    """The ``--run`` command of a study with these settings, every one spelled out, so a
+    page's reader reruns (or resumes) the same sweep."""
+    parts = ["python experiments/paper_tables.py --run", f"--recipe {recipe}",
+             f"--frames {frames or 'F'}", f"--eval-runs {eval_runs}"]
+    if eval_robots is not None:
+        parts.append(f"--eval-robots {eval_robots}")
+    parts.append("--seeds " + ",".join(map(str, seeds)))
+    if tables:
+        parts.append("--tables " + " ".join(tables))
+    return " ".join(parts)
+
+
+def section(spec: PaperTable, frames: int | None, command: str) -> tuple[list[str], dict]:
+    """A paper table's page section; ``command``: :func:`study_command` of the sweep."""
     path = RESULTS / spec.study / "table.csv"
-    run = (f"`python experiments/paper_tables.py --run --frames {frames or 'F'} "
-           f"--eval-runs {eval_runs}`")
+    run = f"`{command}`"
     lines = [f"## {spec.title}", ""]
     if not path.is_file():
         return lines + [f"Not run yet: {run}.", ""], {}
@@ -183,11 +197,12 @@ def job_state(name: str, jobs: Path | None = None) -> tuple[str, int, float, dic
 PROGRESS_ROWS = ("overall", "randommix", "ditch", "hurdle", "gap", "forest")
 
 
-def progress_section(seeds: list[int], frames: int | None, jobs: Path | None = None
-                     ) -> list[str]:
+def progress_section(seeds: list[int], frames: int | None, jobs: Path | None = None,
+                     command: str | None = None) -> list[str]:
     """Where the sweep stands: every job of the six tables at ``seeds`` (and at the seeds
     of the jobs already under ``jobs``), its state (:func:`job_state`), and a recorded
-    job's SR overall and per category, so a reader sees the study before its tables."""
+    job's SR overall and per category, so a reader sees the study before its tables;
+    ``command`` (:func:`study_command`): the one that goes on with it."""
     folder = jobs or JOBS
     on_disk = {int(p.name.rsplit("-seed", 1)[1]) for p in folder.glob("*-seed*")
                if p.name.rsplit("-seed", 1)[1].isdigit()}
@@ -199,7 +214,9 @@ def progress_section(seeds: list[int], frames: int | None, jobs: Path | None = N
              f"{done} of {len(planned)} jobs recorded at {budget}; a table is written once "
              "all its jobs are recorded. Parked jobs resume from `paper_jobs/<job>/"
              "unfinished/`. Training minutes on this machine's 2 cores (two jobs at once "
-             "share them). SR (%) on protocol v2, one run of the job's robots a level.", "",
+             "share them). SR (%) on protocol v2, one run of the job's robots a level."
+             + (f" The sweep goes on with `{command} --parallel 2 --minutes 88` (a "
+                "session's window on both cores)." if command else ""), "",
              "| job | state | frames | training min | " + " | ".join(
                  f"SR {row}" for row in PROGRESS_ROWS) + " |",
              "|" + "---|" * (4 + len(PROGRESS_ROWS))]
@@ -257,15 +274,14 @@ def main_grid() -> dict[str, list[str]]:
     return {"robot.name": ["h1"], "algo.name": list(MAIN.methods.values())}
 
 
-def main_section(frames: int | None, eval_runs: int) -> list[str]:
+def main_section(command: str) -> list[str]:
     """The main comparison's page section: per category (overall first) each method's
     published value (where we have one) beside ours, and our ordering of LEGO-H against
-    each baseline per metric."""
+    each baseline per metric. ``command``: :func:`study_command` of the sweep."""
     path = RESULTS / MAIN.study / "table.csv"
     lines = [f"## {MAIN.title}", ""]
     if not path.is_file():
-        return lines + [f"Not run yet: `python experiments/paper_tables.py --run --frames "
-                        f"{frames or 'F'} --eval-runs {eval_runs} --tables main`.", ""]
+        return lines + [f"Not run yet: `{command} --tables main`.", ""]
     table = read_study_csv(path)
     names = list(MAIN.methods)
     lines += [f"Ours: `experiments/results/{MAIN.study}/` (its `table.md` says the frames, "
@@ -644,10 +660,11 @@ def main() -> None:
              "numbers come from full training (Isaac Gym, thousands of robots, the paper "
              "preset); ours from CPU-scale runs (the small TC-ViTs preset, the shipped "
              "oracle teaching), so compare orderings, not values.", ""]
-    lines += progress_section(seeds, args.frames)
-    lines += main_section(args.frames, args.eval_runs)
+    command = study_command(args.frames, args.eval_runs, seeds, args.recipe, args.eval_robots)
+    lines += progress_section(seeds, args.frames, command=command)
+    lines += main_section(command)
     for spec in PAPER_TABLES:  # every table: --tables picks the studies run, not the page
-        lines += section(spec, args.frames, args.eval_runs)[0]
+        lines += section(spec, args.frames, command)[0]
     out = RESULTS / "paper_tables.md"
     out.write_text("\n".join(lines), encoding="utf-8")
     print("\n".join(lines))

@@ -121,16 +121,18 @@ def test_paper_tables_set_a_study_beside_the_paper_and_compare_orderings(tmp_pat
         42.0, 2.0)
     monkeypatch.setattr(paper_tables, "RESULTS", results)
     spec = {t.name: t for t in PAPER_TABLES}
-    lines, counts = paper_tables.section(spec["table3"], 1000, 3)
+    command = paper_tables.study_command(1000, 3, [0])
+    lines, counts = paper_tables.section(spec["table3"], 1000, command)
     sr = next(line for line in lines if line.startswith("| SR"))
     assert sr.endswith("| < | > | no |")  # paper: HLM better; ours: EP-H better
     assert counts["tie"] == 5  # every other metric is 1.0 ± 0.0 for both
     assert "Not this budget" not in "\n".join(lines)
-    lines, _ = paper_tables.section(spec["table3"], 5000, 3)  # a table of other frames
+    lines, _ = paper_tables.section(spec["table3"], 5000, command)  # of other frames
     assert "**Not this budget**: the table's jobs trained 1000 frames each, not 5000" in (
         "\n".join(lines))
-    lines, counts = paper_tables.section(spec["table1"], 1000, 3)
-    assert counts == {} and "paper_tables.py --run --frames 1000" in "\n".join(lines)
+    lines, counts = paper_tables.section(spec["table1"], 1000, command)
+    assert counts == {} and "paper_tables.py --run --recipe v2 --frames 1000 --eval-runs 3 " \
+        "--seeds 0`" in "\n".join(lines)
 
 
 
@@ -291,7 +293,7 @@ def test_the_main_comparison_sets_lego_h_beside_each_baseline_per_category(
     with pytest.raises(SystemExit, match="--jobs h1-lego: valid are .*h1-unified"):
         paper_tables.planned_jobs(PAPER_TABLES, [0], only=["h1-lego"])
     monkeypatch.setattr(paper_tables, "RESULTS", tmp_path)
-    assert "Not run yet" in "\n".join(paper_tables.main_section(1000, 3))
+    assert "Not run yet" in "\n".join(paper_tables.main_section("cmd"))
     jobs = tmp_path / "jobs"
     for algo, sr in (("unified", 50.0), ("rma_h", 30.0), ("rma_b", 49.0), ("ep_h", 70.0),
                      ("unified_ct", 99.0)):
@@ -300,7 +302,7 @@ def test_the_main_comparison_sets_lego_h_beside_each_baseline_per_category(
                       {"overall": per_run([sr, sr + 2.0]), "gap": per_run([sr, sr])})
     study_table(jobs, tmp_path / MAIN.study, MAIN.study,
                 select={**paper_tables.main_grid(), "seed": ["0", "1"]})
-    page = "\n".join(paper_tables.main_section(1000, 3))
+    page = "\n".join(paper_tables.main_section("cmd"))
     assert "unified_ct" not in page and "99.00" not in page  # only the four methods
     overall = page.split("**overall**")[1].split("**gap**")[0]
     sr = next(line for line in overall.splitlines() if line.startswith("| SR"))
@@ -381,6 +383,10 @@ def test_a_paper_job_killed_at_a_session_end_is_parked_and_resumes_on_a_fresh_cl
     assert "1 of 9 jobs recorded" in progress  # the six tables' and the main comparison's
     assert "| h1-unified-seed0 | recorded | 0.00M | 0 | 41.0 |" in progress
     assert "| h1-rma_h-seed0 | not started |" in progress
+    command = paper_tables.study_command(1000, 2, [0, 1], "v2", 400)
+    progress = "\n".join(paper_tables.progress_section([0], 1000, command=command))
+    assert ("goes on with `python experiments/paper_tables.py --run --recipe v2 --frames 1000 "
+            "--eval-runs 2 --eval-robots 400 --seeds 0,1 --parallel 2 --minutes 88`") in progress
     with pytest.raises(SystemExit, match="eval.robots=400; this sweep asks .*eval.robots=80:"):
         paper_tables.run_job(*job, **{**each, "eval_robots": 80})
     with pytest.raises(SystemExit, match="--minutes 0: valid is > 0"):
