@@ -224,7 +224,28 @@ def progress_section(seeds: list[int], frames: int | None, jobs: Path | None = N
         cells = [f"{sr[row]:.1f}" if row in sr else "–" for row in PROGRESS_ROWS]
         lines.append(f"| {name} | {state} | {trained / 1e6:.2f}M | {minutes:.0f} | "
                      + " | ".join(cells) + " |")
-    return lines + [""]
+    lines.append("")
+    if frames:
+        lines += [pace_line(list(states.values()), frames), ""]
+    return lines
+
+
+def pace_line(states: list[tuple], frames: int, window: float = 88.0,
+              parallel: int = 2) -> str:
+    """Frames the sweep has left at ``frames`` a job, and the windows of ``window`` minutes
+    they take at the pace of the jobs trained so far (their frames over their training
+    minutes, ``parallel`` jobs at once): an estimate for planning sessions."""
+    left = sum(max(0, frames - trained) for _, trained, *_ in states)
+    trained = sum(t for _, t, *_ in states)
+    minutes = sum(m for _, _, m, _ in states)
+    text = f"Left: {left / 1e6:.1f}M frames"
+    if trained and minutes:
+        pace = trained / minutes  # frames a training minute, a job
+        windows = left / (pace * parallel * window)
+        text += (f"; at the pace so far ({pace / 1e3:.0f}k frames a training minute a job, "
+                 f"{parallel} jobs at once) ~{windows:.0f} windows of {window:.0f} minutes "
+                 "(plus each job's benchmark)")
+    return text + "."
 
 
 def summary_line(counts: dict[str, int]) -> str:

@@ -383,6 +383,11 @@ def test_a_paper_job_killed_at_a_session_end_is_parked_and_resumes_on_a_fresh_cl
     assert "1 of 9 jobs recorded" in progress  # the six tables' and the main comparison's
     assert "| h1-unified-seed0 | recorded | 0.00M | 0 | 41.0 |" in progress
     assert "| h1-rma_h-seed0 | not started |" in progress
+    assert "\nLeft: 0.0M frames; at the pace so far" in progress
+    assert paper_tables.pace_line([("recorded", 6e6, 200.0, {}), ("parked", 3e6, 100.0, {}),
+                                   ("not started", 0, 0.0, {})], int(6e6)) == (
+        "Left: 9.0M frames; at the pace so far (30k frames a training minute a job, 2 jobs "
+        "at once) ~2 windows of 88 minutes (plus each job's benchmark).")
     command = paper_tables.study_command(1000, 2, [0, 1], "v2", 400)
     progress = "\n".join(paper_tables.progress_section([0], 1000, command=command))
     assert ("goes on with `python experiments/paper_tables.py --run --recipe v2 --frames 1000 "
