@@ -52,6 +52,8 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "experiments"))
@@ -227,7 +229,86 @@ def progress_section(seeds: list[int], frames: int | None, jobs: Path | None = N
     lines.append("")
     if frames:
         lines += [pace_line(list(states.values()), frames), ""]
+    figure = folder / "curves.png"
+    if curves_figure(list(states), figure, folder):
+        lines += ["Each recorded or parked job in training (its `train.csv`):", "",
+                  f"![the study's jobs in training]({figure.relative_to(folder.parent)})", ""]
     return lines
+
+
+# the training numbers the sweep's figure sets side by side: (train.csv column, panel title)
+CURVES = (("distill/loss_action", "imitation loss (actions)"),
+          ("fell_frac", "falls (share of ended episodes)"),
+          ("episode_metres", "metres an episode"), ("level_mean", "curriculum level"))
+
+
+def job_log(name: str, jobs: Path | None = None) -> dict[str, np.ndarray] | None:
+    """A recorded or parked job's training numbers (:data:`CURVES`) and frames, from its
+    committed ``train.csv`` and config; None for a job with neither."""
+    folder = (jobs or JOBS) / name
+    for where in (folder, folder / UNFINISHED):
+        log, config = where / "train.csv", where / ".hydra" / "config.yaml"
+        if log.is_file() and config.is_file():
+            break
+    else:
+        return None
+    with open(log, newline="", encoding="utf-8") as f:
+        reader = csv.reader(f)
+        head = next(reader)
+        index = {key: head.index(key) for key in ("iteration", *dict(CURVES)) if key in head}
+        rows = [[float(row[i]) if row[i] else np.nan for i in index.values()]
+                for row in reader]
+    cols = dict(zip(index, np.array(rows, dtype=float).reshape(-1, len(index)).T,
+                    strict=True))
+    cols["frames"] = cols["iteration"] * batch_frames(config)
+    return cols
+
+
+def running_mean(y: np.ndarray, n: int) -> np.ndarray:
+    """The mean of each ``n`` consecutive values of ``y`` that are logged: an iteration
+    without an ended episode logs NaN falls and metres, which count as missing, not 0."""
+    kernel = np.ones(max(1, min(n, len(y))))
+    seen = np.isfinite(y)
+    with np.errstate(invalid="ignore"):
+        return (np.convolve(np.where(seen, y, 0.0), kernel, mode="valid")
+                / np.convolve(seen, kernel, mode="valid"))
+
+
+def curves_figure(names: list[str], out: Path, jobs: Path | None = None,
+                  smooth: int = 100) -> list[str]:
+    """The training numbers of the jobs ``names`` that have a log (recorded or parked),
+    one colour a method, one line style a seed, each a running mean over ``smooth``
+    iterations against frames; written to ``out``. Returns the jobs drawn."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    logs = {name: log for name in names if (log := job_log(name, jobs)) is not None}
+    if not logs:
+        return []
+    methods = sorted({name.rsplit("-seed", 1)[0] for name in logs})
+    colour = {m: plt.get_cmap("tab10")(i % 10) for i, m in enumerate(methods)}
+    fig, axes = plt.subplots(1, len(CURVES), figsize=(4.2 * len(CURVES), 3.4))
+    for ax, (key, title) in zip(axes, CURVES, strict=True):
+        for name, log in logs.items():
+            if key not in log:
+                continue
+            method, seed = name.rsplit("-seed", 1)
+            mean = running_mean(log[key], smooth)
+            ax.plot(log["frames"][len(log[key]) - len(mean):] / 1e6, mean, color=colour[method],
+                    ls="-" if seed == "0" else "--", lw=1.1, label=f"{method} s{seed}")
+        ax.set_title(title, fontsize=10)
+        ax.set_yscale("log" if key == CURVES[0][0] else "linear")
+        ax.set_xlabel("frames (M)", fontsize=9)
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=7)
+    fig.suptitle(f"the study's jobs in training (running mean of {smooth} iterations)")
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=90)
+    plt.close(fig)
+    return list(logs)
 
 
 def pace_line(states: list[tuple], frames: int, window: float = 88.0,

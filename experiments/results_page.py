@@ -19,6 +19,7 @@ import argparse
 import csv
 import json
 import os
+import re
 import sys
 from pathlib import Path
 
@@ -279,7 +280,9 @@ def study_section() -> list[str]:
         if line.startswith("## "):
             title, older = line[3:], ""
         elif title == "Where the sweep stands":
-            progress.append(line)  # the sweep's state, as the tables page has it
+            # the sweep's state, as the tables page has it, links made relative to this page
+            progress.append(re.sub(r"\]\(([^)]+)\)",
+                                   lambda m: f"]({rel(path.parent / m.group(1))})", line))
         elif line.startswith("**Not this budget**") and title is not None:
             older = " (an older budget's table: " + line.split(": ", 1)[1].split(";")[0] + ")"
         elif line.startswith("Where both separate") and title is not None:

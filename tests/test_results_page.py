@@ -95,3 +95,16 @@ def test_a_milestone_met_at_the_first_evaluation_reads_as_the_start_not_as_zero_
     text = results_page.milestone_text(stones, first_frames=768)
     assert text == ("(s1) met at the first evaluation; (s2) 0.7M frames / 24 min; "
                     "(s3) not reached")
+
+
+def test_the_sweeps_state_keeps_its_figure_linked_from_the_results_page(tmp_path, monkeypatch):
+    """paper_tables.md's links are relative to experiments/results/; copied to docs/ they
+    are rewritten to reach the same file."""
+    import results_page
+
+    (tmp_path / "paper_tables.md").write_text(
+        "# t\n\n## Where the sweep stands\n\n![the jobs](paper_jobs/curves.png)\n")
+    monkeypatch.setattr(results_page, "RESULTS", tmp_path)
+    lines = results_page.study_section()
+    assert f"![the jobs]({results_page.rel(tmp_path / 'paper_jobs' / 'curves.png')})" in lines
+    assert "![the jobs](paper_jobs/curves.png)" not in lines

@@ -146,6 +146,7 @@ def test_paper_tables_page_keeps_every_table_when_one_is_picked(tmp_path, monkey
     import paper_tables
 
     monkeypatch.setattr(paper_tables, "RESULTS", tmp_path)
+    monkeypatch.setattr(paper_tables, "JOBS", tmp_path / "paper_jobs")  # the page's figure
     monkeypatch.setattr(sys, "argv", ["paper_tables.py", "--frames", "1000", "--tables",
                                       "table4"])
     paper_tables.main()
@@ -548,3 +549,33 @@ def test_a_windowed_sweep_keeps_the_tables_of_studies_with_unrecorded_jobs(tmp_p
     paper_tables.main()  # Table 1's jobs are all recorded now: its table is written
     table = read_study_csv(kept)["overall"]
     assert set(table) == {"unified", "unified_ct"} and table["unified"]["SR"][0] == 61.0
+
+
+def test_the_sweeps_figure_draws_recorded_and_parked_jobs_and_skips_unlogged_iterations(
+        tmp_path) -> None:
+    """``curves_figure`` reads each recorded or parked job's train.csv (frames from its
+    config's batch). Its running mean skips NaN (an iteration with no ended episode), where
+    counting it as 0 would halve the falls."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments"))
+    import paper_tables
+
+    assert paper_tables.running_mean(np.array([np.nan, 0.5, np.nan, 0.5]), 2).tolist() == [
+        0.5, 0.5, 0.5]
+    jobs = tmp_path / "jobs"
+    for where in (jobs / "h1-unified-seed0", jobs / "h1-unified_ct-seed1" / "unfinished"):
+        (where / ".hydra").mkdir(parents=True)
+        (where / ".hydra" / "config.yaml").write_text(
+            OmegaConf.to_yaml({"algo": {"num_envs": 4, "steps_per_env": 2}}))
+        (where / "train.csv").write_text("iteration,fell_frac,episode_metres,reward\n"
+                                         "1,,1.0,0.5\n2,0.25,2.0,0.5\n3,0.75,,0.5\n")
+    (jobs / "h1-rma_b-seed0").mkdir()  # not started: nothing to draw
+    log = paper_tables.job_log("h1-unified_ct-seed1", jobs)
+    assert log["frames"].tolist() == [8.0, 16.0, 24.0] and "distill/loss_action" not in log
+    drawn = paper_tables.curves_figure(
+        ["h1-unified-seed0", "h1-unified_ct-seed1", "h1-rma_b-seed0"], tmp_path / "c.png",
+        jobs, smooth=2)
+    assert drawn == ["h1-unified-seed0", "h1-unified_ct-seed1"]
+    assert (tmp_path / "c.png").stat().st_size > 10_000
