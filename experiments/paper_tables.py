@@ -70,6 +70,9 @@ JOBS = RESULTS / "paper_jobs"  # each job's record, committed: a later session s
 BUDGET = RESULTS / "paper_budget"  # probes' records at a budget the study moved past
 RUNS = ROOT / "multirun" / "paper"  # the jobs' run folders (checkpoints: not committed)
 UNFINISHED = "unfinished"  # paper_jobs/<job>/unfinished/: a parked job (park), committed
+# a session's training window for the sweep (the brief's ~90 minutes) and the jobs at once
+# on this machine's 2 cores: what the page's command and its estimate of what is left assume
+WINDOW_MINUTES, PARALLEL = 88, 2
 RECORD = (".hydra/config.yaml", "benchmark.csv", "benchmark_runs.csv", "train.csv")
 # Every job trains as learn_student's campaign does (the hike map, its teacher's reward
 # recipe and curriculum) and is scored on all five categories, levels 0-4; no video.
@@ -204,7 +207,8 @@ def progress_section(seeds: list[int], frames: int | None, jobs: Path | None = N
     """Where the sweep stands: every job of the six tables at ``seeds`` (and at the seeds
     of the jobs already under ``jobs``), its state (:func:`job_state`), and a recorded
     job's SR overall and per category, so a reader sees the study before its tables;
-    ``command`` (:func:`study_command`): the one that goes on with it."""
+    ``command`` (:func:`study_command`): the one that goes on with it. Draws the jobs'
+    training (:func:`curves_figure`) to ``curves.png`` beside them."""
     folder = jobs or JOBS
     on_disk = {int(p.name.rsplit("-seed", 1)[1]) for p in folder.glob("*-seed*")
                if p.name.rsplit("-seed", 1)[1].isdigit()}
@@ -217,8 +221,9 @@ def progress_section(seeds: list[int], frames: int | None, jobs: Path | None = N
              "all its jobs are recorded. Parked jobs resume from `paper_jobs/<job>/"
              "unfinished/`. Training minutes on this machine's 2 cores (two jobs at once "
              "share them). SR (%) on protocol v2, one run of the job's robots a level."
-             + (f" The sweep goes on with `{command} --parallel 2 --minutes 88` (a "
-                "session's window on both cores)." if command else ""), "",
+             + (f" The sweep goes on with `{command} --parallel {PARALLEL} --minutes "
+                f"{WINDOW_MINUTES}` (a session's window on both cores)." if command else ""),
+             "",
              "| job | state | frames | training min | " + " | ".join(
                  f"SR {row}" for row in PROGRESS_ROWS) + " |",
              "|" + "---|" * (4 + len(PROGRESS_ROWS))]
@@ -244,7 +249,7 @@ CURVES = (("distill/loss_action", "imitation loss (actions)"),
 
 def job_log(name: str, jobs: Path | None = None) -> dict[str, np.ndarray] | None:
     """A recorded or parked job's training numbers (:data:`CURVES`) and frames, from its
-    committed ``train.csv`` and config; None for a job with neither."""
+    committed ``train.csv`` and config; None for a job with neither or with no row."""
     folder = (jobs or JOBS) / name
     for where in (folder, folder / UNFINISHED):
         log, config = where / "train.csv", where / ".hydra" / "config.yaml"
@@ -258,6 +263,8 @@ def job_log(name: str, jobs: Path | None = None) -> dict[str, np.ndarray] | None
         index = {key: head.index(key) for key in ("iteration", *dict(CURVES)) if key in head}
         rows = [[float(row[i]) if row[i] else np.nan for i in index.values()]
                 for row in reader]
+    if not rows:  # parked before its first iteration
+        return None
     cols = dict(zip(index, np.array(rows, dtype=float).reshape(-1, len(index)).T,
                     strict=True))
     cols["frames"] = cols["iteration"] * batch_frames(config)
@@ -311,8 +318,8 @@ def curves_figure(names: list[str], out: Path, jobs: Path | None = None,
     return list(logs)
 
 
-def pace_line(states: list[tuple], frames: int, window: float = 88.0,
-              parallel: int = 2) -> str:
+def pace_line(states: list[tuple], frames: int, window: float = WINDOW_MINUTES,
+              parallel: int = PARALLEL) -> str:
     """Frames the sweep has left at ``frames`` a job, and the windows of ``window`` minutes
     they take at the pace of the jobs trained so far (their frames over their training
     minutes, ``parallel`` jobs at once): an estimate for planning sessions."""

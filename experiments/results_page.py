@@ -177,8 +177,11 @@ def campaigns_section() -> list[str]:
         curve = path.parent / "curve.png"
         name = f"{path.parent.parent.name}/{path.parent.name}"
         link = f"[curve]({rel(curve)})" if curve.exists() else "-"
-        with open(path.parent / "evals.csv") as f:
-            first = int(float(next(csv.DictReader(f))["frames"]))
+        evals = path.parent / "evals.csv"
+        first = 0  # no evaluation logged: no milestone can read as met at the first
+        if evals.is_file():
+            with open(evals) as f:
+                first = int(float(next(csv.DictReader(f), {"frames": 0})["frames"]))
         lines.append(f"| `{name}` | {milestone_text(meta['milestones'], first)} | {link} |")
     lines.append("")
     for path in runs:

@@ -572,6 +572,12 @@ def test_the_sweeps_figure_draws_recorded_and_parked_jobs_and_skips_unlogged_ite
         (where / "train.csv").write_text("iteration,fell_frac,episode_metres,reward\n"
                                          "1,,1.0,0.5\n2,0.25,2.0,0.5\n3,0.75,,0.5\n")
     (jobs / "h1-rma_b-seed0").mkdir()  # not started: nothing to draw
+    empty = jobs / "h1-rma_h-seed0" / "unfinished"  # parked before its first iteration
+    (empty / ".hydra").mkdir(parents=True)
+    (empty / ".hydra" / "config.yaml").write_text(
+        OmegaConf.to_yaml({"algo": {"num_envs": 4, "steps_per_env": 2}}))
+    (empty / "train.csv").write_text("iteration,fell_frac\n")
+    assert paper_tables.job_log("h1-rma_h-seed0", jobs) is None
     log = paper_tables.job_log("h1-unified_ct-seed1", jobs)
     assert log["frames"].tolist() == [8.0, 16.0, 24.0] and "distill/loss_action" not in log
     drawn = paper_tables.curves_figure(
