@@ -309,7 +309,9 @@ def curves_figure(names: list[str], out: Path, jobs: Path | None = None,
         ax.set_yscale("log" if key == CURVES[0][0] else "linear")
         ax.set_xlabel("frames (M)", fontsize=9)
         ax.grid(alpha=0.3)
-    axes[0].legend(fontsize=7)
+    # the legend of the panel with the most lines (a job may not log every column)
+    axes[0].legend(*max((ax.get_legend_handles_labels() for ax in axes),
+                        key=lambda drawn: len(drawn[0])), fontsize=7)
     fig.suptitle(f"the study's jobs in training (running mean of {smooth} iterations)")
     fig.tight_layout()
     out.parent.mkdir(parents=True, exist_ok=True)
