@@ -248,8 +248,9 @@ CURVES = (("distill/loss_action", "imitation loss (actions)"),
 
 
 def job_log(name: str, jobs: Path | None = None) -> dict[str, np.ndarray] | None:
-    """A recorded or parked job's training numbers (:data:`CURVES`) and frames, from its
-    committed ``train.csv`` and config; None for a job with neither or with no row."""
+    """A recorded or parked job's training columns (``legoh.eval.curves.read_columns``)
+    and frames, from its committed ``train.csv`` and config; None for a job with neither or
+    with no row."""
     folder = (jobs or JOBS) / name
     for where in (folder, folder / UNFINISHED):
         log, config = where / "train.csv", where / ".hydra" / "config.yaml"
@@ -257,16 +258,11 @@ def job_log(name: str, jobs: Path | None = None) -> dict[str, np.ndarray] | None
             break
     else:
         return None
-    with open(log, newline="", encoding="utf-8") as f:
-        reader = csv.reader(f)
-        head = next(reader)
-        index = {key: head.index(key) for key in ("iteration", *dict(CURVES)) if key in head}
-        rows = [[float(row[i]) if row[i] else np.nan for i in index.values()]
-                for row in reader]
-    if not rows:  # parked before its first iteration
+    from legoh.eval.curves import read_columns
+
+    cols = read_columns(log)
+    if not cols:  # parked before its first iteration
         return None
-    cols = dict(zip(index, np.array(rows, dtype=float).reshape(-1, len(index)).T,
-                    strict=True))
     cols["frames"] = cols["iteration"] * batch_frames(config)
     return cols
 
