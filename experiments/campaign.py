@@ -20,6 +20,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from legoh.eval.curves import read_columns
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -213,7 +215,7 @@ def plot_training(axes, out: Path, frames_per_iteration: float, categories) -> N
     """From ``train.csv`` (25-iteration means): the mean terrain level per category on
     ``axes[0]``, the falls among ended episodes per category and the randomisation strength
     on ``axes[1]``, against frames (M)."""
-    t = read_train(out)
+    t = read_columns(out / "train.csv")
     hole = np.flatnonzero(np.diff(t["iteration"]) > 1) + 1  # a session's rows lost
     t = {k: np.insert(v, hole, np.nan) for k, v in t.items()}  # NaN x: the line breaks
     tx = t["iteration"] * frames_per_iteration / 1e6
@@ -244,14 +246,6 @@ def write_rows(path: Path, rows: list[dict]) -> None:
         w = csv.DictWriter(f, fieldnames=fields, restval="nan")
         w.writeheader()
         w.writerows(rows)
-
-
-def read_train(out: Path) -> dict[str, np.ndarray]:
-    """train.csv as float columns (empty cells NaN)."""
-    with open(out / "train.csv") as f:
-        rows = list(csv.DictReader(f))
-    return {k: np.array([float(r[k]) if r[k] not in ("", None) else np.nan for r in rows])
-            for k in rows[0]}
 
 
 def smooth(y: np.ndarray, k: int = 25) -> np.ndarray:

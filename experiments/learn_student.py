@@ -72,7 +72,6 @@ from campaign import (  # noqa: E402
     milestone_lines,
     plot_training,
     read_rows,
-    read_train,
     smooth,
     snapshots_to_score,
     training_row,
@@ -84,6 +83,7 @@ from omegaconf import OmegaConf  # noqa: E402
 
 from legoh.checkpoint import load_checkpoint, save_checkpoint  # noqa: E402
 from legoh.eval.benchmark import BENCHMARK_VERSION, student_eval_env_fn  # noqa: E402
+from legoh.eval.curves import read_columns  # noqa: E402
 from legoh.policies.embodiment import LEGACY_FEET, with_checkpoint_body  # noqa: E402
 from legoh.policies.oracle import load_teacher  # noqa: E402
 from legoh.policies.pretrained import shipped_oracle  # noqa: E402
@@ -473,7 +473,7 @@ def plot(out: Path) -> None:
     fig, axes = plt.subplots(1, 5, figsize=(25, 4))
     per_it = e["frames"][-1] / max(e["iteration"][-1], 1)
     plot_training(axes[:2], out, per_it, CATEGORIES)
-    t = read_train(out)
+    t = read_columns(out / "train.csv")
     for key, style in (("distill/loss_action", "k"), ("distill/loss_latent", "k--"),
                        ("distill/loss_priv_latent", "k:")):  # algo.history_latent only
         if key in t:
