@@ -74,13 +74,16 @@ def record(robot: str, robots: int, steps: int, pool: int, episode_s: float,
     proprio, ids, draws, starts = [], [], [], []
     try:
         actor = load_oracle_actor(cfg, path, env)
+        # the draws themselves: env.physics_features is what the oracle is shown (nominal
+        # for every robot when it is blind)
+        truth = torch.as_tensor(env.physics.as_features())
         td = env.reset()
         start = torch.ones(robots, dtype=torch.bool)
         with torch.no_grad():
             for _ in range(steps):
                 proprio.append(td[keys.PROPRIO].float().clone())
                 ids.append(env.sim.model_of_env.clone())
-                draws.append(env.physics_features[env.sim.model_of_env].clone())
+                draws.append(truth[env.sim.model_of_env])
                 starts.append(start)
                 stepped, td = env.step_and_maybe_reset(actor(td))  # a done robot restarts
                 start = stepped["next", "done"].reshape(robots).clone()
@@ -119,6 +122,8 @@ def held_out_r2(data: dict, history: int, iters: int, seed: int = 0) -> list[flo
     the history does not tell reads ~0, not the overfit's negative R^2."""
     x, y, k = windows(data, history)
     test, val = held_out(k), k % 4 == 1
+    if np.ptp(y[test], axis=0).min() == 0:  # R^2 undefined: every robot shows one draw
+        raise ValueError("the held-out draws do not vary: was the randomisation off?")
     fit = ~(test | val)
     mx, sx = x[fit].mean(0), x[fit].std(0) + 1e-6
     my, sy = y[fit].mean(0), y[fit].std(0) + 1e-6

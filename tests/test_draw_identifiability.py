@@ -4,6 +4,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "experiments"))
@@ -40,3 +41,12 @@ def test_r2_reads_unseen_draws_the_proprio_carries() -> None:
     assert len(r2) == 6 and min(r2) > 0.8
     data["proprio"][..., :6] = np.random.default_rng(1).normal(size=data["proprio"][..., :6].shape)
     assert max(held_out_r2(data, 1, iters=300)) < 0.3  # noise: nothing to read
+
+
+def test_constant_draws_are_refused() -> None:
+    # Fault: a blind oracle's env shows every robot the nominal draw; read from there the
+    # targets were constant and every R^2 came out 1.00
+    data = rollout(robots=16)
+    data["draws"][:] = data["draws"][:1, :1]
+    with pytest.raises(ValueError, match="do not vary"):
+        held_out_r2(data, 1, iters=10)
