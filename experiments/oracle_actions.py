@@ -5,7 +5,8 @@ labels a stage-2 student imitates (``algo.label_clip``, docs/unified.md).
         [--label h1-v2] [--robots 32] [--steps 150]
 
 The oracle acts (its mean, no noise) on ``--robots`` robots of the hike map (curriculum
-levels as training starts them, randomisation as the recipe sets it) for ``--steps`` steps,
+levels as training starts them, randomisation as the recipe sets it; a robot whose episode
+ends restarts) for ``--steps`` steps,
 on the body its checkpoint trained on; per joint the RMS of its raw means, and overall the
 RMS, the largest magnitude and the share of entries above 3 (the env clips at
 ``env.action_clip``; with ``effort_action_scale`` 0.5 the PD torque saturates from |a| ~ 2
@@ -40,6 +41,19 @@ from legoh.policies.pretrained import resolve_checkpoint  # noqa: E402
 RESULTS = ROOT / "experiments" / "results"
 
 
+def rollout_actions(env, actor, steps: int) -> tuple[torch.Tensor, int]:
+    """``actor``'s actions (steps, robots, joints) over ``steps`` steps of ``env``, a robot
+    whose episode ended restarting, and how many episodes ended."""
+    td, actions, ended = env.reset(), [], 0
+    with torch.no_grad():
+        for _ in range(steps):
+            td = actor(td)
+            actions.append(td["action"].clone())
+            stepped, td = env.step_and_maybe_reset(td)
+            ended += int(stepped["next", "done"].sum())
+    return torch.stack(actions), ended
+
+
 def action_stats(robot: str, checkpoint: str, recipe: str, robots: int, steps: int,
                  seed: int = 0) -> dict:
     """Per-joint RMS and overall figures of the oracle's raw mean actions (see above)."""
@@ -50,17 +64,10 @@ def action_stats(robot: str, checkpoint: str, recipe: str, robots: int, steps: i
     cfg = with_checkpoint_body(cfg, path)
     env = make_env(cfg, num_envs=robots)
     try:
-        actor = load_oracle_actor(cfg, path, env)
-        td, actions = env.reset(), []
-        with torch.no_grad():
-            for _ in range(steps):
-                td = actor(td)
-                actions.append(td["action"].clone())
-                td = env.step(td)["next"]
+        a, ended = rollout_actions(env, load_oracle_actor(cfg, path, env), steps)
         joints = list(cfg.robot.leg_joints) + list(cfg.robot.get("upper_joints") or [])
     finally:
         env.close()
-    a = torch.stack(actions)  # (steps, robots, joints)
     rms = a.pow(2).mean((0, 1)).sqrt().tolist()
     return {"robot": robot, "checkpoint": str(path.relative_to(ROOT)) if path.is_relative_to(
                 ROOT) else str(path), "recipe": recipe, "robots": robots, "steps": steps,
@@ -69,6 +76,7 @@ def action_stats(robot: str, checkpoint: str, recipe: str, robots: int, steps: i
             "rms": round(a.pow(2).mean().sqrt().item(), 3),
             "max_abs": round(a.abs().max().item(), 2),
             "share_above_3": round((a.abs() > 3).float().mean().item(), 4),
+            "episodes_ended": ended,
             "action_clip": float(cfg.env.action_clip)}
 
 
