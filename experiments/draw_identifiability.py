@@ -115,12 +115,18 @@ def held_out(ids: np.ndarray) -> np.ndarray:
 
 
 def held_out_r2(data: dict, history: int, iters: int, seed: int = 0) -> list[float]:
-    """R^2 per draw feature on the held-out draws' windows of an MLP regression fitted on
-    the other draws' ``history``-step windows. A third of the fitted draws (ids 1 mod 4)
-    only validates: per feature, the held-out predictions are those of the checkpoint (every
-    100 steps, the untrained net included) with the least validation error, so a feature
-    the history does not tell reads ~0, not the overfit's negative R^2."""
-    x, y, k = windows(data, history)
+    """R^2 per draw feature on the held-out draws' ``history``-step windows (``fit_r2``)."""
+    return fit_r2(*windows(data, history), iters, seed)
+
+
+def fit_r2(x: np.ndarray, y: np.ndarray, k: np.ndarray, iters: int, seed: int = 0
+           ) -> list[float]:
+    """R^2 per draw feature on the held-out draws' windows of an MLP regression from
+    windows ``x`` to draws ``y`` (draw ids ``k``) fitted on the other draws' windows. A
+    third of the fitted draws (ids 1 mod 4) only validates: per feature, the held-out
+    predictions are those of the checkpoint (every 100 steps, the untrained net included)
+    with the least validation error, so a feature the history does not tell reads ~0, not
+    the overfit's negative R^2."""
     test, val = held_out(k), k % 4 == 1
     if np.ptp(y[test], axis=0).min() == 0:  # R^2 undefined: every robot shows one draw
         raise ValueError("the held-out draws do not vary: was the randomisation off?")
@@ -219,9 +225,10 @@ def main() -> None:
               "iters": args.iters, "histories": args.histories, "features": list(FEATURES),
               "draws_met": int(len(np.unique(data["ids"]))), "r2": {}}
     for h in args.histories:
-        test = held_out(windows(data, h)[2])
+        x, y, k = windows(data, h)
+        test = held_out(k)
         result["r2"][str(h)] = {"windows": [int((~test).sum()), int(test.sum())],
-                                "r2": held_out_r2(data, h, args.iters)}
+                                "r2": fit_r2(x, y, k, args.iters)}
         r2 = result["r2"][str(h)]["r2"]
         print(f"H={h}: " + ", ".join(f"{f} {v:.2f}" for f, v in zip(FEATURES, r2, strict=True)),
               flush=True)
